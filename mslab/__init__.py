@@ -1,0 +1,20 @@
+"""mslab: a numerical-methods workbench for mass-spring systems.
+
+Public API (see DESIGN.md); this module only re-exports.
+"""
+
+from mslab.errors import ConvergenceError, InstabilityError, MslabError, SceneError, StabilityWarning
+from mslab.integrators import ExplicitRK, Integrator, get_method, methods
+from mslab.integrators.base import COURSE_METHODS
+from mslab.scenes import Scene, SceneBuilder, Settings
+from mslab.simulate import Energy, SimulationInterrupted, Stats, Trajectory, simulate
+from mslab.state import State
+from mslab.system import System
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "COURSE_METHODS", "ConvergenceError", "Energy", "ExplicitRK", "InstabilityError", "Integrator",
+    "MslabError", "Scene", "SceneBuilder", "SceneError", "Settings", "SimulationInterrupted",
+    "StabilityWarning", "State", "Stats", "System", "Trajectory", "get_method", "methods", "simulate",
+]

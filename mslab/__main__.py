@@ -1,0 +1,5 @@
+import sys
+
+from mslab.cli import main
+
+sys.exit(main())

@@ -1,0 +1,57 @@
+"""The ``mslab`` command line.
+
+Every user mistake ends as one line ``mslab: error: ...`` with exit code 2 and no
+traceback; every subcommand takes ``--json`` and (where it writes) ``--out DIR``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from mslab.commands.common import CommandError
+from mslab.errors import MslabError
+
+#: subcommand modules in mslab.commands, in the order ``mslab --help`` lists them
+COMMANDS = ("scenes", "run", "compare", "precision", "stability", "validate", "grade", "release", "bench")
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):  # argparse's own usage errors: one line, exit 2
+        self.exit(2, f"mslab: error: {message}\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="mslab", description="Mass-spring systems: integrators, stability, accuracy vs cost.")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    for name in COMMANDS:
+        try:
+            module = importlib.import_module(f"mslab.commands.{name}")
+        except ModuleNotFoundError as err:
+            if err.name == f"mslab.commands.{name}":
+                continue  # a command not built yet
+            raise
+        module.register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except (CommandError, MslabError, ValueError, OSError) as err:
+        message = str(err).splitlines()[0] if str(err) else type(err).__name__
+        print(f"mslab: error: {message}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("mslab: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

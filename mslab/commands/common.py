@@ -1,0 +1,97 @@
+"""What every subcommand shares: clear errors, JSON output, output folders, atomic writes."""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+
+class CommandError(Exception):
+    """A user mistake: printed as one line ``mslab: error: WHERE: KEY: reason``, exit 2."""
+
+    def __init__(self, reason: str, where: str | None = None, key: str | None = None):
+        parts = [p for p in (where, key, reason) if p]
+        super().__init__(": ".join(parts))
+
+
+def add_common_options(parser, out: bool = True) -> None:
+    """``--json`` (one JSON document on stdout) and ``--out DIR``."""
+    parser.add_argument("--json", action="store_true", help="print one JSON document on stdout, nothing else")
+    if out:
+        parser.add_argument("--out", metavar="DIR", default=None, help="folder for figures and data")
+
+
+def to_jsonable(obj):
+    """Convert numpy scalars/arrays (and nested containers) for json.dumps."""
+    if isinstance(obj, dict):
+        return {str(k): to_jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [to_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return to_jsonable(obj.tolist())
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, np.floating | float):
+        value = float(obj)
+        return value if np.isfinite(value) else None
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    if isinstance(obj, Path):
+        return str(obj)
+    return obj
+
+
+def emit_json(doc: dict) -> None:
+    """Write exactly one JSON document to stdout."""
+    sys.stdout.write(json.dumps(to_jsonable(doc), indent=2) + "\n")
+    sys.stdout.flush()
+
+
+def say(args, text: str) -> None:
+    """Human-readable output: stdout normally, stderr when --json owns stdout."""
+    print(text, file=sys.stderr if getattr(args, "json", False) else sys.stdout)
+
+
+def out_dir(args, default: str | None = None) -> Path | None:
+    """The --out folder (created), or None when no figures/data were asked for."""
+    folder = getattr(args, "out", None) or default
+    if folder is None:
+        return None
+    path = Path(folder)
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def atomic_write(path: str | Path, write: Callable[[str], None], suffix: str | None = None) -> Path:
+    """Call ``write(tmp_path)``, then rename tmp to ``path``: readers never see a half file.
+
+    The temporary file sits in the same folder (same file system, so the rename is atomic)
+    and is removed if ``write`` fails or is interrupted.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=suffix or path.suffix, dir=path.parent)
+    os.close(fd)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path
+
+
+def save_figure(fig, path: str | Path) -> Path:
+    """Save a matplotlib figure atomically (PNG, fixed dpi) and close it."""
+    import matplotlib.pyplot as plt
+
+    result = atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=110, format=Path(path).suffix[1:] or "png"))
+    plt.close(fig)
+    return result

@@ -1,0 +1,54 @@
+"""Energy-ledger plots. Plotting only: every number comes from a Trajectory."""
+
+from __future__ import annotations
+
+import matplotlib.pyplot as plt
+import numpy as np
+
+
+def plot_energy(traj, ax=None, components: bool = True, label: str | None = None):
+    """Energy ledger of one run over time: K, U, dissipated and the total ``K + U + D``.
+
+    Parameters
+    ----------
+    traj : Trajectory
+    ax : matplotlib Axes, optional
+    components : bool
+        Draw K, U and D as well as the total.
+    label : str, optional
+        Label of the total's line (default: the method's name).
+
+    Returns
+    -------
+    ax
+    """
+    ax = ax if ax is not None else plt.gca()
+    e = traj.energy
+    if components:
+        ax.plot(traj.t, e.kinetic, lw=1, label="kinetic K")
+        ax.plot(traj.t, e.potential, lw=1, label="potential U")
+        if np.any(e.dissipated):
+            ax.plot(traj.t, e.dissipated, lw=1, label="dissipated D")
+    ax.plot(traj.t, e.total, lw=2, color="k" if components else None,
+            label=label or f"total ({traj.stats.method})")
+    ax.set_xlabel("time t [s]")
+    ax.set_ylabel("energy [J]")
+    ax.legend(loc="best", fontsize="small")
+    return ax
+
+
+def plot_energy_error(trajs, ax=None):
+    """Relative error of the ledger total ``|E(t) - E(0)| / |E(0)|`` for several runs (log scale).
+
+    Parameters
+    ----------
+    trajs : sequence of Trajectory
+    """
+    ax = ax if ax is not None else plt.gca()
+    for tr in trajs:
+        drift = np.abs(tr.energy.relative_drift())
+        ax.semilogy(tr.t[1:], np.maximum(drift[1:], 1e-17), label=tr.stats.method)
+    ax.set_xlabel("time t [s]")
+    ax.set_ylabel("relative energy error")
+    ax.legend(loc="best", fontsize="small", ncol=2)
+    return ax

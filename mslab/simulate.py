@@ -1,0 +1,234 @@
+"""Fixed-step simulation: run an integrator on a scene, keep saved samples, count the work.
+
+Decisions (documented in the README):
+
+* **Fixed steps, t_end reached exactly.** ``t_end / dt`` must be a whole number (to a
+  relative 1e-9); otherwise ``simulate`` refuses and names the nearest valid dt. A
+  shortened last step would break the multistep methods (Verlet, leapfrog).
+* **Bounded memory.** Only every ``save_every``-th state (and the last) is kept.
+* **Energy ledger** at the saved times: kinetic K, potential U, dissipated work D
+  (integrated by the method itself), total ``K + U + D`` (constant for exact dynamics).
+* **Counted work.** ``stats`` reports what the System counted during stepping only.
+* **No hidden clamps.** A non-finite state, or positions beyond ``blowup`` times the
+  scene's size, stops the run with :class:`~mslab.errors.InstabilityError`.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mslab.errors import ConvergenceError, InstabilityError, StepFailure
+from mslab.integrators.base import Integrator, get_method
+from mslab.scenes.builder import Scene
+from mslab.state import State
+
+
+@dataclass
+class Energy:
+    """Energy ledger over the saved times, each an array of shape (n_saved,)."""
+
+    kinetic: np.ndarray
+    potential: np.ndarray
+    dissipated: np.ndarray
+
+    @property
+    def total(self) -> np.ndarray:
+        """``K + U + D``: constant for the exact solution, damped or not."""
+        return self.kinetic + self.potential + self.dissipated
+
+    def relative_drift(self) -> np.ndarray:
+        """``(E(t) - E(0)) / max(|E(0)|, tiny)`` of the total."""
+        total = self.total
+        scale = max(abs(total[0]), float(np.max(np.abs(self.kinetic + np.abs(self.potential)))), 1e-300)
+        return (total - total[0]) / scale
+
+
+@dataclass
+class Stats:
+    """Work and time of a run, counted by the System during stepping."""
+
+    method: str
+    dt: float
+    steps: int = 0
+    n_force: int = 0
+    n_jac: int = 0
+    n_solve: int = 0
+    n_iter: int = 0
+    wall_time: float = 0.0
+
+    def as_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
+@dataclass
+class Trajectory:
+    """Saved samples of a run.
+
+    Attributes
+    ----------
+    t : ndarray, shape (n_saved,)
+    x, v : ndarray, shape (n_saved, n_particles, dim)
+    energy : Energy
+    stats : Stats
+    complete : bool
+        False for the part of a run kept when it blew up or was interrupted.
+    """
+
+    t: np.ndarray
+    x: np.ndarray
+    v: np.ndarray
+    energy: Energy
+    stats: Stats
+    complete: bool = True
+    scene_name: str = ""
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def final_state(self) -> State:
+        return State(self.x[-1], self.v[-1])
+
+
+class SimulationInterrupted(KeyboardInterrupt):
+    """Ctrl-C during ``simulate``: ``.trajectory`` holds what was computed."""
+
+    def __init__(self, trajectory: Trajectory):
+        super().__init__("interrupted")
+        self.trajectory = trajectory
+
+
+def step_count(t_end: float, dt: float) -> int:
+    """Number of fixed steps of size dt that reach t_end exactly; ValueError otherwise."""
+    if not (np.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt must be a finite number > 0, got {dt!r}")
+    if not (np.isfinite(t_end) and t_end > 0):
+        raise ValueError(f"t_end must be a finite number > 0, got {t_end!r}")
+    ratio = t_end / dt
+    n = max(1, round(ratio))
+    if abs(n - ratio) > 1e-9 * max(1.0, ratio):
+        raise ValueError(f"t_end = {t_end:g} is not a whole number of steps of dt = {dt:g} "
+                         f"({ratio:.4g} steps); use dt = {t_end / n:.6g} ({n} steps)")
+    return n
+
+
+def _save_indices(n_steps: int, save_every: int) -> np.ndarray:
+    idx = np.arange(0, n_steps + 1, save_every)
+    return idx if idx[-1] == n_steps else np.append(idx, n_steps)
+
+
+def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | None = None,
+             t_end: float | None = None, save_every: int | None = None, *,
+             progress: bool | None = None, blowup: float = 1e6,
+             stable_dt: float | None = None) -> Trajectory:
+    """Integrate a scene with a fixed step.
+
+    Parameters
+    ----------
+    scene : Scene
+    method : str or Integrator, optional
+        Registry name (see ``mslab.methods()``); default ``scene.settings.method``.
+    dt, t_end : float, optional
+        Step and end time (``t_end/dt`` a whole number); defaults from the scene.
+    save_every : int, optional
+        Keep every n-th state (and always the last one).
+    progress : bool or None
+        Show a tqdm progress bar; None: only on a terminal for runs of many steps.
+    blowup : float
+        A position beyond ``blowup * (1 + scene size)`` counts as a blow-up.
+    stable_dt : float, optional
+        Predicted stable step, quoted in the InstabilityError message.
+
+    Returns
+    -------
+    Trajectory
+
+    Raises
+    ------
+    InstabilityError
+        The state became non-finite or blew up (``.trajectory`` keeps the saved part).
+    ConvergenceError
+        An implicit method's iteration failed.
+    """
+    s = scene.settings
+    integrator = get_method(method if method is not None else s.method)
+    dt = float(s.dt if dt is None else dt)
+    t_end = float(s.t_end if t_end is None else t_end)
+    save_every = int(s.save_every if save_every is None else save_every)
+    if save_every < 1:
+        raise ValueError(f"save_every must be >= 1, got {save_every}")
+    n_steps = step_count(t_end, dt)
+    system = scene.system
+    saved = _save_indices(n_steps, save_every)
+    n_saved = saved.size
+    shape = (n_saved,) + scene.state0.x.shape
+    xs, vs = np.empty(shape), np.empty(shape)
+    ds = np.empty(n_saved)
+    limit = blowup * (1.0 + float(np.max(np.abs(scene.state0.x))))
+    stats = Stats(method=integrator.name, dt=dt)
+
+    def finish(k: int, complete: bool) -> Trajectory:
+        t = saved[:k] * dt
+        kin = np.array([system.kinetic_energy(vs[i]) for i in range(k)])
+        pot = np.array([system.potential_energy(xs[i]) for i in range(k)])
+        return Trajectory(t, xs[:k].copy(), vs[:k].copy(), Energy(kin, pot, ds[:k].copy()), stats,
+                          complete, scene.name)
+
+    if progress is None:
+        progress = n_steps >= 20000 and sys.stderr.isatty()
+    bar = None
+    if progress:
+        from tqdm import tqdm
+        bar = tqdm(total=n_steps, desc=integrator.name, unit="step", file=sys.stderr, leave=False)
+
+    before = system.counters.snapshot()
+    k = 0
+    step = 0
+    start = time.perf_counter()
+    try:
+        state = integrator.start(system, scene.state0, dt)
+        xs[0], vs[0], ds[0] = state.x, state.v, state.dissipated
+        k = 1
+        for step in range(1, n_steps + 1):
+            state = integrator.step(system, state, dt)
+            if saved[k] == step:
+                xs[k], vs[k], ds[k] = state.x, state.v, state.dissipated
+                k += 1
+            if not (np.isfinite(state.x).all() and np.isfinite(state.v).all()
+                    and np.abs(state.x).max() < limit):
+                raise FloatingPointError
+            if bar is not None and step % 1000 == 0:
+                bar.update(1000)
+    except FloatingPointError:
+        _close(stats, system, before, start, step - 1, bar)
+        k = int(np.searchsorted(saved, step - 1, side="right"))
+        what = "non-finite" if not state.is_finite() else f"beyond {blowup:g} x the scene size"
+        hint = (f"; predicted stable dt = {stable_dt:.4g}" if stable_dt is not None
+                else "; try a smaller dt or an implicit method")
+        raise InstabilityError(
+            f"{integrator.name} blew up at step {step} (t = {step * dt:.6g}, dt = {dt:g}): "
+            f"state became {what}{hint}", method=integrator.name, step=step, t=step * dt, dt=dt,
+            stable_dt=stable_dt, trajectory=finish(k, False)) from None
+    except StepFailure as err:
+        _close(stats, system, before, start, step - 1, bar)
+        k = int(np.searchsorted(saved, step - 1, side="right"))
+        raise ConvergenceError(
+            f"{integrator.name} failed at step {step} (t = {step * dt:.6g}, dt = {dt:g}): {err}",
+            method=integrator.name, step=step, t=step * dt, dt=dt, stable_dt=stable_dt,
+            trajectory=finish(k, False)) from None
+    except KeyboardInterrupt:
+        _close(stats, system, before, start, step - 1, bar)
+        raise SimulationInterrupted(finish(k, False)) from None
+    _close(stats, system, before, start, n_steps, bar)
+    return finish(k, True)
+
+
+def _close(stats: Stats, system, before: dict, start: float, steps: int, bar) -> None:
+    stats.wall_time = time.perf_counter() - start
+    stats.steps = max(steps, 0)
+    for key, value in system.counters.since(before).items():
+        setattr(stats, key, value)
+    if bar is not None:
+        bar.close()
