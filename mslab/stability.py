@@ -266,7 +266,8 @@ def measured_amplification_matrix(method: str | Integrator, h_omega: float, h_ga
     scene = b.build("measured oscillator")
     system = scene.system
     eq = m.start(system, scene.state0, 1.0)
-    slots = [i for i, item in enumerate(eq.memory) if isinstance(item, np.ndarray) and item.shape == eq.x.shape]
+    slots = [i for i, item in enumerate(eq.memory)
+             if isinstance(item, np.ndarray) and item.shape == eq.x.shape]
 
     def flat(state: State) -> np.ndarray:
         return np.array([state.x[p, 0], state.v[p, 0]] + [state.memory[i][p, 0] for i in slots])
@@ -333,7 +334,8 @@ def _real_interval(m: Integrator) -> float:
 
 @lru_cache(maxsize=256)
 def _imag_limit(m: Integrator) -> float:
-    return _ray_limit(lambda s: np.maximum(np.abs(amplification(m, 1j * s)), np.abs(amplification(m, -1j * s))))
+    return _ray_limit(lambda s: np.maximum(np.abs(amplification(m, 1j * s)),
+                                           np.abs(amplification(m, -1j * s))))
 
 
 @lru_cache(maxsize=256)
@@ -426,7 +428,8 @@ def linearise(scene: Scene, x: np.ndarray | None = None, v: np.ndarray | None = 
         kx, kv = e.jacobians(x, v)
         if isinstance(e, PenaltyCollider) and contacts == "possible":
             _, normal, _ = e._contact(x)
-            normal = np.where(np.linalg.norm(normal, axis=1, keepdims=True) > 0, normal, 1.0 / np.sqrt(x.shape[1]))
+            touching = np.linalg.norm(normal, axis=1, keepdims=True) > 0
+            normal = np.where(touching, normal, 1.0 / np.sqrt(x.shape[1]))
             blocks = -e.stiffness * normal[:, :, None] * normal[:, None, :]
             kx = block_diagonal(blocks, np.arange(system.n_particles), system.n_particles)
         if kx is not None:
