@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from mslab import fast
 from mslab.effects.base import Effect, pair_blocks
 
 
@@ -74,12 +75,23 @@ class Springs(Effect):
         return f, float(np.sum(self.damping * rate * rate))
 
     def force(self, x, v):
+        if fast.use_numba():  # the same equations as a compiled loop (mslab/fast/kernels.py)
+            return self._fast_force(x, v)[0]
         f, _ = self._pair_force(x, v)
         return scatter_pairs(f, self.i, self.j, self.n)
 
     def force_and_power(self, x, v):
+        if fast.use_numba():
+            return self._fast_force(x, v)
         f, p = self._pair_force(x, v)
         return scatter_pairs(f, self.i, self.j, self.n), p
+
+    def _fast_force(self, x, v):
+        x = np.ascontiguousarray(x, dtype=float)
+        v = np.ascontiguousarray(v, dtype=float) if self.dissipative else x
+        f, p = fast.compiled().spring_force(x, v, self.i, self.j, self.stiffness, self.rest_length,
+                                           self.damping, self.dissipative)
+        return f, float(p)
 
     def power(self, x, v):
         return self._pair_force(x, v)[1]

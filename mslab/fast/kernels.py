@@ -1,0 +1,289 @@
+"""Compiled kernels (numba): the same equations as the numpy effects and integrators, as loops.
+
+Every kernel mirrors a readable numpy reference in ``mslab/effects`` or ``mslab/integrators``
+and is tested equal to it (``tests/test_fast.py``). Arrays are float64, C-contiguous:
+positions ``x`` and velocities ``v`` of shape ``(n_particles, dim)``; spring pairs as two
+int64 arrays ``i, j`` of shape ``(n_springs,)``.
+
+The force model of the compiled path is the sum of three effects (any of them may be
+absent: zero stiffness arrays, zero gravity force, ``gamma = 0``):
+
+* Hooke springs with damping along the spring (seed eqs. 1-2)::
+
+      d = x_i - x_j,  l = |d|,  u = d / l,
+      f_i = -k (d - L u) - c (u . (v_i - v_j)) u,      f_j = -f_i,      P = c (u . Δv)^2
+
+* gravity ``f_i = m_i g`` (precomputed as an array ``f_gravity``),
+* viscous drag ``f_i = -gamma v_i``, ``P = gamma |v_i|^2``,
+
+and the acceleration is ``a_i = f_i / m_i`` (``inv_mass = 0`` for pinned particles).
+
+Compiled code is cached on disk (``cache=True``): the first use in a fresh checkout
+compiles for a few seconds, later processes load it in a fraction of a second.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+# Status codes returned by the stepping loops.
+OK = 0
+BLOWUP = 1
+
+
+@njit(cache=True)
+def spring_forces(x, v, i, j, stiffness, rest_length, damping, damped, f):
+    """Add the spring forces to ``f`` (n_particles, dim) in place; return the dissipated power.
+
+    A loop over springs: the pair force ``f_q`` goes to ``+f[i]`` and ``-f[j]``.
+    A spring of zero length has ``u = 0`` and exerts ``-k d = 0`` (never NaN).
+    """
+    dim = x.shape[1]
+    power = 0.0
+    d = np.empty(dim)
+    for q in range(i.shape[0]):
+        a = i[q]
+        b = j[q]
+        length2 = 0.0
+        for c in range(dim):
+            d[c] = x[a, c] - x[b, c]
+            length2 += d[c] * d[c]
+        length = np.sqrt(length2)
+        inv_l = 1.0 / length if length > 0.0 else 0.0
+        k = stiffness[q]
+        lu = rest_length[q] * inv_l  # L u = (L / l) d
+        if damped:
+            rate = 0.0  # u . (v_i - v_j), the stretch rate
+            for c in range(dim):
+                rate += d[c] * inv_l * (v[a, c] - v[b, c])
+            cr = damping[q] * rate
+            power += cr * rate
+            for c in range(dim):
+                fc = -k * (d[c] - lu * d[c]) - cr * (d[c] * inv_l)
+                f[a, c] += fc
+                f[b, c] -= fc
+        else:
+            for c in range(dim):
+                fc = -k * (d[c] - lu * d[c])
+                f[a, c] += fc
+                f[b, c] -= fc
+    return power
+
+
+@njit(cache=True)
+def spring_force(x, v, i, j, stiffness, rest_length, damping, damped):
+    """Spring forces alone: ``(f, power)`` with ``f`` of shape (n_particles, dim)."""
+    f = np.zeros_like(x)
+    power = spring_forces(x, v, i, j, stiffness, rest_length, damping, damped, f)
+    return f, power
+
+
+@njit(cache=True)
+def rhs(x, v, inv_mass, i, j, stiffness, rest_length, damping, damped, f_gravity, gamma, a):
+    """Acceleration into ``a`` (n_particles, dim) and the dissipated power (returned).
+
+    ``a = M^-1 (f_springs + f_gravity - gamma v)``, as ``System.rhs``.
+    """
+    n, dim = x.shape
+    for p in range(n):
+        for c in range(dim):
+            a[p, c] = 0.0
+    power = spring_forces(x, v, i, j, stiffness, rest_length, damping, damped, a)
+    for p in range(n):
+        for c in range(dim):
+            a[p, c] = inv_mass[p] * (a[p, c] + f_gravity[p, c] - gamma * v[p, c])
+    if gamma != 0.0:
+        for p in range(n):
+            for c in range(dim):
+                power += gamma * v[p, c] * v[p, c]
+    return power
+
+
+@njit(cache=True)
+def _blown_up(x, v, limit):
+    """A non-finite entry or a position beyond ``limit``: the blow-up test of ``simulate``."""
+    n, dim = x.shape
+    for p in range(n):
+        for c in range(dim):
+            if not (np.isfinite(x[p, c]) and np.isfinite(v[p, c]) and abs(x[p, c]) < limit):
+                return True
+    return False
+
+
+@njit(cache=True)
+def _save(x, v, dissipated, xs, vs, ds, k):
+    xs[k] = x
+    vs[k] = v
+    ds[k] = dissipated
+
+
+@njit(cache=True)
+def run_explicit_rk(x, v, dissipated, A, b, dt, step, n_steps, saved, k, xs, vs, ds, limit,
+                    inv_mass, i, j, stiffness, rest_length, damping, damped, f_gravity, gamma):
+    """Steps ``step+1 .. n_steps`` of an explicit Runge-Kutta tableau (seed eqs. 16-20).
+
+    ``Y_s = y_n + h sum_{r<s} A_sr K_r``, ``K_s = F(Y_s)``, ``y_{n+1} = y_n + h sum_s b_s K_s``
+    with ``y = (x, v)``, ``F(y) = (v, a(x, v))``; the dissipated work gets the same weights b.
+    ``x, v`` are advanced in place; the states with indices in ``saved[k:]`` go to
+    ``xs, vs, ds``. Returns ``(step, k, dissipated, status)``: the last step taken, the next
+    free save slot, and OK or BLOWUP (then ``step`` is the step that blew up).
+    """
+    n, dim = x.shape
+    s = b.shape[0]
+    kx = np.empty((s, n, dim))
+    kv = np.empty((s, n, dim))
+    power = np.empty(s)
+    xi = np.empty((n, dim))
+    vi = np.empty((n, dim))
+    while step < n_steps:
+        step += 1
+        for st in range(s):
+            xi[:, :] = x
+            vi[:, :] = v
+            for r in range(st):
+                if A[st, r] != 0.0:
+                    h = dt * A[st, r]
+                    for p in range(n):
+                        for c in range(dim):
+                            xi[p, c] = xi[p, c] + h * kx[r, p, c]
+                            vi[p, c] = vi[p, c] + h * kv[r, p, c]
+            power[st] = rhs(xi, vi, inv_mass, i, j, stiffness, rest_length, damping, damped,
+                            f_gravity, gamma, kv[st])
+            kx[st] = vi
+        work = 0.0
+        for st in range(s):
+            if b[st] != 0.0:
+                h = dt * b[st]
+                for p in range(n):
+                    for c in range(dim):
+                        x[p, c] = x[p, c] + h * kx[st, p, c]
+                        v[p, c] = v[p, c] + h * kv[st, p, c]
+                work += h * power[st]
+        dissipated = dissipated + work
+        if k < saved.shape[0] and saved[k] == step:
+            _save(x, v, dissipated, xs, vs, ds, k)
+            k += 1
+        if _blown_up(x, v, limit):
+            return step, k, dissipated, BLOWUP
+    return step, k, dissipated, OK
+
+
+# Symplectic methods, by number (see SYMPLECTIC in mslab.fast).
+SYMPLECTIC_EULER = 0
+SYMPLECTIC_EULER_X = 1
+VERLET = 2
+LEAPFROG = 3
+VELOCITY_VERLET = 4
+
+
+@njit(cache=True)
+def run_symplectic(method, x, v, dissipated, mem_x, mem_a, mem_p, dt, step, n_steps, saved, k,
+                   xs, vs, ds, limit, velocity_dependent,
+                   inv_mass, i, j, stiffness, rest_length, damping, damped, f_gravity, gamma):
+    """Steps of the symplectic methods of ``mslab/integrators/symplectic.py`` (seed eqs. 7-10, 21-26).
+
+    ``method``: SYMPLECTIC_EULER (``v += h a(x, v); x += h v``), SYMPLECTIC_EULER_X
+    (``x += h v; v += h a(x, v)``), VERLET (``x_{n+1} = 2 x_n - x_{n-1} + h^2 a_n``, memory
+    ``mem_x = x_{n-1}``, ``mem_p = [P_{n-1}]``), LEAPFROG (``mem_x = v_{n+1/2}``,
+    ``mem_a = a_n``, ``mem_p = [P_n]``), VELOCITY_VERLET (``mem_a = a_n``, ``mem_p = [P_n]``).
+    Memory arrays are updated in place. Returns as :func:`run_explicit_rk`.
+    """
+    n, dim = x.shape
+    a = np.empty((n, dim))
+    xg = np.empty((n, dim))
+    vg = np.empty((n, dim))
+    while step < n_steps:
+        step += 1
+        if method == SYMPLECTIC_EULER:
+            p = rhs(x, v, inv_mass, i, j, stiffness, rest_length, damping, damped, f_gravity, gamma, a)
+            for q in range(n):
+                for c in range(dim):
+                    v[q, c] = v[q, c] + dt * a[q, c]
+                    x[q, c] = x[q, c] + dt * v[q, c]
+            dissipated = dissipated + dt * p
+        elif method == SYMPLECTIC_EULER_X:
+            for q in range(n):
+                for c in range(dim):
+                    x[q, c] = x[q, c] + dt * v[q, c]
+            p = rhs(x, v, inv_mass, i, j, stiffness, rest_length, damping, damped, f_gravity, gamma, a)
+            for q in range(n):
+                for c in range(dim):
+                    v[q, c] = v[q, c] + dt * a[q, c]
+            dissipated = dissipated + dt * p
+        elif method == VERLET:
+            p = rhs(x, v, inv_mass, i, j, stiffness, rest_length, damping, damped, f_gravity, gamma, a)
+            for q in range(n):
+                for c in range(dim):
+                    x_new = 2.0 * x[q, c] - mem_x[q, c] + (dt * dt) * a[q, c]
+                    v[q, c] = (x_new - x[q, c]) / dt + (0.5 * dt) * a[q, c]
+                    mem_x[q, c] = x[q, c]
+                    x[q, c] = x_new
+            dissipated = dissipated + 0.5 * dt * (3.0 * p - mem_p[0])
+            mem_p[0] = p
+        elif method == LEAPFROG:
+            v_half = mem_x
+            for q in range(n):
+                for c in range(dim):
+                    x[q, c] = x[q, c] + dt * v_half[q, c]
+                    if velocity_dependent:
+                        vg[q, c] = v_half[q, c] + (0.5 * dt) * mem_a[q, c]
+                    else:
+                        vg[q, c] = v_half[q, c]
+            p = rhs(x, vg, inv_mass, i, j, stiffness, rest_length, damping, damped, f_gravity, gamma, a)
+            for q in range(n):
+                for c in range(dim):
+                    v[q, c] = v_half[q, c] + (0.5 * dt) * a[q, c]
+                    v_half[q, c] = v_half[q, c] + dt * a[q, c]
+                    mem_a[q, c] = a[q, c]
+            dissipated = dissipated + 0.5 * dt * (mem_p[0] + p)
+            mem_p[0] = p
+        else:  # VELOCITY_VERLET
+            for q in range(n):
+                for c in range(dim):
+                    xg[q, c] = x[q, c] + dt * v[q, c] + (0.5 * dt * dt) * mem_a[q, c]
+                    vg[q, c] = v[q, c] + dt * mem_a[q, c]
+            p = rhs(xg, vg, inv_mass, i, j, stiffness, rest_length, damping, damped, f_gravity, gamma, a)
+            for q in range(n):
+                for c in range(dim):
+                    x[q, c] = xg[q, c]
+                    v[q, c] = v[q, c] + (0.5 * dt) * (mem_a[q, c] + a[q, c])
+                    mem_a[q, c] = a[q, c]
+            dissipated = dissipated + 0.5 * dt * (mem_p[0] + p)
+            mem_p[0] = p
+        if k < saved.shape[0] and saved[k] == step:
+            _save(x, v, dissipated, xs, vs, ds, k)
+            k += 1
+        if _blown_up(x, v, limit):
+            return step, k, dissipated, BLOWUP
+    return step, k, dissipated, OK
+
+
+@njit(cache=True)
+def energies(xs, vs, mass, free, i, j, stiffness, rest_length, f_gravity):
+    """Kinetic and potential energy of each saved state: two arrays of shape (n_saved,).
+
+    ``K = sum_free m |v|^2 / 2``, ``U = sum_q k (l_q - L_q)^2 / 2 - sum_p f_gravity_p . x_p``.
+    """
+    n_saved, n, dim = xs.shape
+    kinetic = np.zeros(n_saved)
+    potential = np.zeros(n_saved)
+    for s in range(n_saved):
+        kin = 0.0
+        pot_g = 0.0
+        for p in range(n):
+            for c in range(dim):
+                if free[p]:
+                    kin += mass[p] * vs[s, p, c] * vs[s, p, c]
+                pot_g -= f_gravity[p, c] * xs[s, p, c]
+        pot_s = 0.0
+        for q in range(i.shape[0]):
+            length2 = 0.0
+            for c in range(dim):
+                dc = xs[s, i[q], c] - xs[s, j[q], c]
+                length2 += dc * dc
+            stretch = np.sqrt(length2) - rest_length[q]
+            pot_s += stiffness[q] * stretch * stretch
+        kinetic[s] = 0.5 * kin
+        potential[s] = 0.5 * pot_s + pot_g
+    return kinetic, potential
