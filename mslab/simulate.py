@@ -21,12 +21,13 @@ from __future__ import annotations
 
 import sys
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from mslab import fast
-from mslab.errors import ConvergenceError, InstabilityError, StepFailure
+from mslab.errors import ConvergenceError, InstabilityError, StabilityWarning, StepFailure
 from mslab.integrators.base import Integrator, get_method
 from mslab.scenes.builder import Scene
 from mslab.state import State
@@ -127,7 +128,8 @@ def _save_indices(n_steps: int, save_every: int) -> np.ndarray:
 def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | None = None,
              t_end: float | None = None, save_every: int | None = None, *,
              progress: bool | None = None, blowup: float = 1e6,
-             stable_dt: float | None = None, backend: str | None = None) -> Trajectory:
+             stable_dt: float | None = None, backend: str | None = None,
+             check_stability: bool = True) -> Trajectory:
     """Integrate a scene with a fixed step.
 
     Parameters
@@ -147,6 +149,11 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
         Predicted stable step, quoted in the InstabilityError message.
     backend : {"auto", "numba", "numpy"}, optional
         Compiled or numpy stepping loop (see :mod:`mslab.fast`); default ``mslab.fast.BACKEND``.
+    check_stability : bool
+        For explicit methods, predict the largest stable dt first
+        (:func:`mslab.stability.predicted_stable_dt`; not counted in ``stats``) and warn with
+        :class:`~mslab.errors.StabilityWarning` when dt exceeds it; the run goes on, and a
+        blow-up then quotes the prediction. Skipped above 5000 degrees of freedom.
 
     Returns
     -------
@@ -162,7 +169,7 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
     if backend is not None and fast.check_backend(backend) != fast.BACKEND:
         with fast.use_backend(backend):  # the spring kernel in Springs.force follows it too
             return simulate(scene, method, dt, t_end, save_every, progress=progress, blowup=blowup,
-                            stable_dt=stable_dt)
+                            stable_dt=stable_dt, check_stability=check_stability)
     s = scene.settings
     integrator = get_method(method if method is not None else s.method)
     dt = float(s.dt if dt is None else dt)
@@ -171,6 +178,8 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
     if save_every < 1:
         raise ValueError(f"save_every must be >= 1, got {save_every}")
     n_steps = step_count(t_end, dt)
+    if check_stability and integrator.explicit:
+        stable_dt = _check_stability(scene, integrator, dt, stable_dt)
     system = scene.system
     saved = _save_indices(n_steps, save_every)
     n_saved = saved.size
@@ -246,6 +255,19 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
         raise SimulationInterrupted(finish(k, False)) from None
     _close(stats, system, before, start, n_steps, bar)
     return finish(k, True)
+
+
+def _check_stability(scene: Scene, integrator: Integrator, dt: float, stable_dt: float | None):
+    """Predicted stable dt (or the given one); warns when dt exceeds it. Counts no work."""
+    from mslab.stability import predicted_stable_dt
+
+    predicted = predicted_stable_dt(scene, integrator)
+    if predicted is not None and dt > predicted:
+        what = (f"{integrator.name} is unstable at every dt on this scene (undamped oscillations grow)"
+                if predicted == 0 else f"dt = {dt:g} exceeds the predicted stable dt = {predicted:.4g} "
+                f"of {integrator.name} ({dt / predicted:.3g} x)")
+        warnings.warn(f"{what}; the run may blow up", StabilityWarning, stacklevel=3)
+    return predicted if stable_dt is None else stable_dt
 
 
 def _close(stats: Stats, system, before: dict, start: float, steps: int, bar) -> None:
