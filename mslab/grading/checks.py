@@ -1,0 +1,97 @@
+"""Assertions for exercise tests: the same messages whether run locally or while grading.
+
+While grading, the student's answers arrive as decoded data and the student's exceptions
+as :class:`~mslab.grading.remote.StudentError`; locally they are the real thing. These
+helpers accept both and fail with one clear line (shape, dtype, worst error).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mslab.grading.remote import StudentError
+
+
+def check_shape(out, shape: tuple, what: str = "result") -> None:
+    """``out`` must be a floating-point ndarray of the given shape."""
+    if not isinstance(out, np.ndarray):
+        raise AssertionError(f"{what}: expected a numpy array of shape {shape}, got {type(out).__name__}")
+    if out.shape != tuple(shape):
+        raise AssertionError(f"{what}: shape {out.shape}, expected {tuple(shape)}")
+    if out.dtype.kind not in "fc":
+        raise AssertionError(f"{what}: dtype {out.dtype}, expected a floating-point array")
+
+
+def check_array(out, expected, rtol: float = 1e-10, atol: float = 1e-12, what: str = "result") -> None:
+    """``out`` must be a float ndarray of the expected shape, finite, and close to ``expected``."""
+    expected = np.asarray(expected)
+    if not isinstance(out, np.ndarray):
+        raise AssertionError(f"{what}: expected a numpy array of shape {expected.shape}, "
+                             f"got {type(out).__name__}")
+    if out.shape != expected.shape:
+        raise AssertionError(f"{what}: shape {out.shape}, expected {expected.shape}")
+    kinds = "fc" if expected.dtype.kind == "c" else "f"
+    if out.dtype.kind not in kinds:
+        raise AssertionError(f"{what}: dtype {out.dtype}, expected a floating-point array")
+    if not np.all(np.isfinite(out)):
+        raise AssertionError(f"{what}: contains NaN or inf")
+    err = np.abs(out - expected)
+    bound = atol + rtol * np.abs(expected)
+    if np.any(err > bound):
+        k = int(np.argmax(err - bound))
+        raise AssertionError(f"{what}: wrong values (worst error {err.flat[k]:.3g} at flat index {k}, "
+                             f"allowed {bound.flat[k]:.3g})")
+
+
+def check_scalar(out, expected: float, rtol: float = 1e-10, atol: float = 1e-12,
+                 what: str = "result") -> None:
+    """``out`` must be a real number close to ``expected``."""
+    if isinstance(out, np.ndarray) and out.shape == ():
+        out = out.item()
+    if isinstance(out, bool) or not isinstance(out, int | float | np.integer | np.floating):
+        raise AssertionError(f"{what}: expected a number, got {type(out).__name__}")
+    if not abs(float(out) - expected) <= atol + rtol * abs(expected):
+        raise AssertionError(f"{what}: {float(out):.12g}, expected {expected:.12g}")
+
+
+def raised(err: BaseException, exc_type: type[BaseException]) -> bool:
+    """Did the student's code raise ``exc_type`` (locally or in the sandbox)?
+
+    ``NotImplementedError`` (the untouched release) never counts, though it is a RuntimeError.
+    """
+    if isinstance(err, StudentError):
+        return exc_type.__name__ in err.mro and "NotImplementedError" not in err.mro
+    return isinstance(err, exc_type) and not isinstance(err, NotImplementedError)
+
+
+def check_raises(exc_type: type[BaseException], func, *args, **kwargs) -> None:
+    """``func(*args, **kwargs)`` must raise ``exc_type`` (not NotImplementedError)."""
+    try:
+        func(*args, **kwargs)
+    except Exception as err:  # noqa: BLE001
+        if raised(err, exc_type):
+            return
+        raise AssertionError(f"expected {exc_type.__name__}, got {err}") from None
+    raise AssertionError(f"expected {exc_type.__name__}, nothing was raised")
+
+
+def fitted_order(dts, errors) -> float:
+    """Slope of log(error) over log(dt): the observed order of convergence."""
+    return float(np.polyfit(np.log(np.asarray(dts, float)), np.log(np.asarray(errors, float)), 1)[0])
+
+
+def reference_run(method: str, problem, x, v, dt: float, steps: int = 1):
+    """mslab's own ``method`` from (x, v): ``steps`` steps; returns the final mslab State.
+
+    Multistep methods are started with their own start-up step; the returned state
+    carries their memory (Verlet: ``(x_prev, P)``, leapfrog: ``(v_half, a, P)``).
+    """
+    from mslab.integrators import get_method
+    from mslab.state import State
+
+    system = problem.system()
+    integrator = get_method(method)
+    state = integrator.start(system, State(np.array(x, dtype=float), np.array(v, dtype=float)), dt)
+    for _ in range(steps):
+        state = integrator.step(system, state, dt)
+    return state

@@ -1,0 +1,124 @@
+"""Where things are: exercise folders, the student's file, the tests and their points."""
+
+from __future__ import annotations
+
+import ast
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+BEGIN, END = "# BEGIN SOLUTION", "# END SOLUTION"
+#: an exercise folder is named ``NN_topic``
+EXERCISE_NAME = re.compile(r"^\d\d_[A-Za-z0-9_]+$")
+HIDDEN = re.compile(r"^test_hidden.*\.py$")
+TEST = re.compile(r"^test_.*\.py$")
+#: largest student file the grader reads (bytes)
+MAX_SOURCE = 1_000_000
+
+
+@dataclass
+class Exercise:
+    """One exercise of the instructor's source tree.
+
+    Attributes
+    ----------
+    name : str
+        Folder name, e.g. ``01_spring_force``.
+    module : str
+        File name of the student's source (the one with solution blocks).
+    tests : dict
+        Test file name -> source text (public and hidden), read once.
+    points : dict
+        ``"file::test_name"`` -> points, from the ``@pytest.mark.points(n)`` markers.
+    """
+
+    name: str
+    folder: Path
+    module: str
+    tests: dict[str, str] = field(default_factory=dict)
+    points: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def max_points(self) -> float:
+        return float(sum(self.points.values()))
+
+
+def test_points(filename: str, source: str) -> dict[str, float]:
+    """Points of every ``test_*`` function of a test file (1 if it has no marker)."""
+    tree = ast.parse(source, filename=filename)
+    out = {}
+    for node in tree.body:
+        if not isinstance(node, ast.FunctionDef) or not node.name.startswith("test"):
+            continue
+        points = 1.0
+        for dec in node.decorator_list:
+            if (isinstance(dec, ast.Call) and isinstance(dec.func, ast.Attribute)
+                    and dec.func.attr == "points" and dec.args and isinstance(dec.args[0], ast.Constant)):
+                points = float(dec.args[0].value)
+        out[f"{filename}::{node.name}"] = points
+    return out
+
+
+def find_exercises(source: str | Path) -> list[Exercise]:
+    """The exercise folders of an instructor's tree, in order (ValueError if there are none)."""
+    source = Path(source)
+    if not source.is_dir():
+        raise ValueError(f"{source}: not a folder of exercises")
+    found = []
+    for folder in sorted(p for p in source.iterdir() if p.is_dir() and EXERCISE_NAME.match(p.name)):
+        modules = [p for p in sorted(folder.glob("*.py"))
+                   if not TEST.match(p.name) and p.name != "conftest.py" and BEGIN in p.read_text()]
+        if len(modules) != 1:
+            raise ValueError(f"{folder}: expected exactly one file with '{BEGIN}' blocks, "
+                             f"found {len(modules)}")
+        ex = Exercise(folder.name, folder, modules[0].name)
+        for test in sorted(p for p in folder.glob("test_*.py")):
+            text = test.read_text()
+            ex.tests[test.name] = text
+            ex.points.update(test_points(test.name, text))
+        found.append(ex)
+    if not found:
+        raise ValueError(f"{source}: no exercise folders (NN_topic) found")
+    return found
+
+
+def is_submission(folder: Path, exercises: list[Exercise]) -> bool:
+    """A submission folder holds at least one exercise folder (or one exercise's file)."""
+    names = {e.name for e in exercises}
+    return any((folder / n).is_dir() for n in names)
+
+
+def expand_submissions(paths, exercises: list[Exercise]) -> list[Path]:
+    """Submission folders from the command line: each path is one submission or a class of them."""
+    out = []
+    for raw in paths:
+        path = Path(raw)
+        if not path.is_dir():
+            raise ValueError(f"{path}: no such folder")
+        if is_submission(path, exercises):
+            out.append(path)
+            continue
+        students = [p for p in sorted(path.iterdir()) if p.is_dir() and not p.name.startswith(".")]
+        if not students:
+            raise ValueError(f"{path}: neither a submission (no exercise folders) nor a class of submissions")
+        out.extend(students)
+    return out
+
+
+def read_student_file(submission: Path, exercise: Exercise) -> tuple[str | None, str]:
+    """The student's source for an exercise and ``""``, or None and why it was not read.
+
+    Symbolic links are not followed out of the submission (a link to the reference
+    solution must not count as the student's work).
+    """
+    path = submission / exercise.name / exercise.module
+    try:
+        if not path.is_file():
+            return None, f"{exercise.module} is missing from the submission"
+        if not path.resolve().is_relative_to(submission.resolve()):
+            return None, f"{exercise.module} links outside the submission"
+        if path.stat().st_size > MAX_SOURCE:
+            return None, f"{exercise.module} is larger than {MAX_SOURCE} bytes"
+        return path.read_bytes().decode("utf-8", errors="replace"), ""
+    except OSError as err:
+        return None, f"{exercise.module} could not be read ({err.strerror})"

@@ -1,0 +1,199 @@
+"""The runner's handle on the sandbox: start it with limits, talk to it, kill it.
+
+:class:`Student` is what the instructor's tests see as the ``student`` fixture while
+grading: ``student.spring_forces(x, ...)`` sends the call to the sandbox and returns the
+decoded *data* it answered; errors of the student's code come back as
+:class:`StudentError`. A call that does not answer within the test's time limit kills
+the sandbox (its whole process group); the next test starts a fresh one.
+"""
+
+from __future__ import annotations
+
+import os
+import resource
+import selectors
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from mslab.grading.wire import WireError, dumps, loads
+
+SANDBOX = Path(__file__).with_name("sandbox.py")
+#: largest single reply accepted from the sandbox (bytes)
+MAX_REPLY = 32 * 1024 * 1024
+
+
+class StudentError(Exception):
+    """The student's code failed (raised, timed out, crashed, answered garbage).
+
+    ``mro`` lists the class names of the exception raised in the sandbox (empty when the
+    process itself failed), so tests can ask whether the student raised, say, RuntimeError.
+    """
+
+    def __init__(self, message: str, mro: tuple[str, ...] = ()):
+        super().__init__(message)
+        self.mro = tuple(mro)
+
+
+def _limits(memory_mb: int, cpu_s: int, file_mb: int):
+    def apply():  # runs in the child between fork and exec
+        mem = memory_mb * 1024 * 1024
+        resource.setrlimit(resource.RLIMIT_AS, (mem, mem))
+        resource.setrlimit(resource.RLIMIT_CPU, (cpu_s, cpu_s + 1))
+        size = file_mb * 1024 * 1024
+        resource.setrlimit(resource.RLIMIT_FSIZE, (size, size))
+        resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
+    return apply
+
+
+class Sandbox:
+    """One sandbox process running the student's module file ``module_file`` in ``workdir``."""
+
+    def __init__(self, module_file: Path, workdir: Path, memory_mb: int = 1024, cpu_s: int = 60,
+                 file_mb: int = 1):
+        self.module_file = Path(module_file)
+        self.workdir = Path(workdir)
+        self.memory_mb, self.cpu_s, self.file_mb = memory_mb, cpu_s, file_mb
+        self.proc: subprocess.Popen | None = None
+        self.broken: str | None = None  # import failed: every later call fails the same way
+        self._buf = b""
+
+    def _env(self) -> dict:
+        keep = ("PATH", "LANG", "LC_ALL", "SYSTEMROOT")
+        env = {k: os.environ[k] for k in keep if k in os.environ}
+        env.update(OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1",
+                   PYTHONDONTWRITEBYTECODE="1", PYTHONHASHSEED="0", HOME=str(self.workdir),
+                   TMPDIR=str(self.workdir), MPLBACKEND="Agg")
+        return env
+
+    def start(self, deadline: float) -> None:
+        self.proc = subprocess.Popen(
+            [sys.executable, "-E", "-s", str(SANDBOX), str(self.module_file)],
+            cwd=self.workdir, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+            env=self._env(), start_new_session=True,
+            preexec_fn=_limits(self.memory_mb, self.cpu_s, self.file_mb))
+        self._buf = b""
+        hello = self._read(deadline, starting=True)
+        if not hello.get("ready"):
+            self.broken = str(hello.get("error", "the module could not be imported"))
+            self.kill()
+            raise StudentError(self.broken)
+
+    def _read(self, deadline: float, starting: bool = False) -> dict:
+        sel = selectors.DefaultSelector()
+        fd = self.proc.stdout.fileno()
+        sel.register(fd, selectors.EVENT_READ)
+        try:
+            while b"\n" not in self._buf:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    self.kill()
+                    what = "importing the module" if starting else "the call"
+                    raise StudentError(f"time limit exceeded ({what} did not finish in time)")
+                if not sel.select(timeout=left):
+                    continue
+                chunk = os.read(fd, 1 << 20)
+                if not chunk:
+                    code = self.proc.wait(timeout=5)
+                    self.kill()
+                    when = "while importing the module" if starting else "during the call"
+                    reason = _exit_reason(code)
+                    if starting:
+                        self.broken = f"the process {reason} {when}"
+                    raise StudentError(f"the process {reason} {when}")
+                self._buf += chunk
+                if len(self._buf) > MAX_REPLY:
+                    self.kill()
+                    raise StudentError(f"the answer is larger than {MAX_REPLY // 2**20} MB")
+        finally:
+            sel.close()
+        line, self._buf = self._buf.split(b"\n", 1)
+        try:
+            msg = loads(line)
+        except WireError as err:
+            self.kill()
+            raise StudentError(f"the process answered something that is not data ({err})") from None
+        if not isinstance(msg, dict):
+            self.kill()
+            raise StudentError("the process answered something that is not a reply")
+        return msg
+
+    def request(self, msg: dict, deadline: float) -> dict:
+        if self.broken:
+            raise StudentError(self.broken)
+        if self.proc is None or self.proc.poll() is not None:
+            self.start(deadline)
+        try:
+            self.proc.stdin.write(dumps(msg))
+            self.proc.stdin.flush()
+        except (BrokenPipeError, OSError):
+            self.kill()
+            raise StudentError("the process stopped before the call") from None
+        return self._read(deadline)
+
+    def kill(self) -> None:
+        if self.proc is None:
+            return
+        try:
+            os.killpg(self.proc.pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
+        for stream in (self.proc.stdin, self.proc.stdout):
+            try:
+                stream.close()
+            except OSError:
+                pass
+        try:
+            self.proc.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            pass
+        self.proc = None
+
+
+def _exit_reason(code: int | None) -> str:
+    if code is None:
+        return "stopped"
+    if code < 0:
+        try:
+            name = signal.Signals(-code).name
+        except ValueError:
+            name = f"signal {-code}"
+        hint = {"SIGXCPU": " (CPU time limit)", "SIGKILL": " (killed)", "SIGXFSZ": " (file size limit)",
+                "SIGSEGV": " (crashed, maybe out of memory)"}.get(name, "")
+        return f"was stopped by {name}{hint}"
+    return f"exited with code {code}"
+
+
+class Student:
+    """The student's module as the instructor's tests see it while grading."""
+
+    def __init__(self, sandbox: Sandbox, deadline: float):
+        object.__setattr__(self, "_sandbox", sandbox)
+        object.__setattr__(self, "_deadline", deadline)
+
+    def __getattr__(self, name: str):
+        if name.startswith("__"):
+            raise AttributeError(name)
+        reply = self._sandbox.request({"op": "getattr", "name": name}, self._deadline)
+        if not reply.get("ok"):
+            raise StudentError(_missing(name, reply), tuple(reply.get("mro", ())))
+        if not reply.get("callable"):
+            return reply.get("value")
+
+        def call(*args, **kwargs):
+            r = self._sandbox.request({"op": "call", "name": name, "args": list(args), "kwargs": kwargs},
+                                      self._deadline)
+            if not r.get("ok"):
+                raise StudentError(f"{name}(): {r.get('error', 'failed')}", tuple(r.get("mro", ())))
+            return r.get("value")
+
+        call.__name__ = name
+        return call
+
+
+def _missing(name: str, reply: dict) -> str:
+    if reply.get("type") == "AttributeError":
+        return f"missing function '{name}'"
+    return f"{name}: {reply.get('error', 'failed')}"

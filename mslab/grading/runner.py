@@ -1,0 +1,159 @@
+"""The test runner: runs the instructor's tests for one exercise of one submission.
+
+Started by the grader as ``python -E -s -P -m mslab.grading.runner`` with a JSON job on
+stdin (a random nonce, the test sources, the student's file, limits). It is *trusted*:
+student code never runs in this process. It
+
+1. makes itself non-dumpable (``prctl(PR_SET_DUMPABLE, 0)``), so processes of the same
+   user cannot open its ``/proc/PID/fd`` or memory, keeps a private copy of stdout for
+   the result and points its standard streams at ``/dev/null``;
+2. writes the tests into a fresh temporary folder and the student's file into another one;
+3. runs pytest in-process on the tests (no conftest, no plugin autoload, importlib
+   import mode) with :class:`GradingPlugin`, whose ``student`` fixture forwards every call
+   to the sandbox (:mod:`mslab.grading.remote`); the tests' own assertions run here;
+4. checks the test files still hold what the grader sent (else the run counts as
+   tampered) and prints one line ``NONCE JSON`` with every test's outcome.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import json
+import os
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import pytest
+
+from mslab.grading.remote import Sandbox, Student, StudentError
+
+PR_SET_DUMPABLE = 4
+
+
+def _not_dumpable() -> None:
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_DUMPABLE, 0, 0, 0, 0)
+    except (OSError, AttributeError):  # not Linux: no /proc to protect
+        pass
+
+
+def short_reason(excinfo) -> str:
+    """One line for the grade report."""
+    err = excinfo.value
+    if isinstance(err, StudentError):
+        text = str(err)
+    elif isinstance(err, AssertionError):
+        text = str(err).strip().splitlines()[0] if str(err).strip() else "assertion failed"
+    else:
+        first = str(err).splitlines()[0] if str(err) else ""
+        text = f"{type(err).__name__}: {first}" if first else type(err).__name__
+    return text[:200]
+
+
+class GradingPlugin:
+    """pytest plugin of the runner: the ``student`` fixture and the outcome of every test."""
+
+    def __init__(self, sandbox: Sandbox | None, timeout: float, missing: str | None = None):
+        self.sandbox = sandbox
+        self.timeout = float(timeout)
+        self.missing = missing
+        self.results: dict[str, dict] = {}
+        self.collect_errors: list[str] = []
+        self.tamper_check = None
+
+    @pytest.fixture
+    def student(self):
+        if self.missing:
+            raise StudentError(self.missing)
+        return Student(self.sandbox, time.monotonic() + self.timeout)
+
+    def pytest_collectreport(self, report):
+        if report.failed:
+            self.collect_errors.append(f"{report.nodeid}: {str(report.longrepr).splitlines()[-1][:200]}")
+
+    def pytest_collection_finish(self, session):
+        if self.tamper_check is not None and not self.tamper_check():
+            self.collect_errors.append("the test files changed on disk during grading (tampering)")
+            session.shouldstop = "tampered"
+            for item in session.items:
+                item.add_marker(pytest.mark.skip(reason="tampered"))
+
+    @pytest.hookimpl(wrapper=True)
+    def pytest_runtest_makereport(self, item, call):
+        rep = yield
+        key = f"{Path(item.fspath).name}::{item.name}"
+        entry = self.results.setdefault(key, {"passed": None, "reason": "not run"})
+        if rep.failed:
+            entry["passed"] = False
+            entry["reason"] = short_reason(call.excinfo) if call.excinfo else "failed"
+        elif rep.skipped:
+            entry["passed"] = False
+            entry["reason"] = "skipped"
+        elif rep.when == "call" and entry["passed"] is None:
+            entry["passed"] = True
+            entry["reason"] = "ok"
+        return rep
+
+
+def run_job(job: dict) -> dict:
+    """Run the tests of one exercise on one student's file; the outcome as a dict."""
+    root = Path(tempfile.mkdtemp(prefix="mslab-runner-"))
+    tests_dir, work_dir = root / "tests", root / "work"
+    tests_dir.mkdir()
+    work_dir.mkdir()
+    try:
+        for name, text in job["tests"].items():
+            (tests_dir / name).write_text(text)
+        ini = tests_dir / "pytest.ini"
+        ini.write_text("[pytest]\nmarkers =\n    points(n): points a test is worth\n")
+        sandbox, missing = None, None
+        if job.get("student_source") is None:
+            missing = f"{job['module']} is missing from the submission"
+        else:
+            module_file = work_dir / job["module"]
+            module_file.write_text(job["student_source"])
+            sandbox = Sandbox(module_file, work_dir, memory_mb=int(job.get("memory_mb", 1024)),
+                              cpu_s=int(job.get("cpu_s", 120)))
+        plugin = GradingPlugin(sandbox, float(job.get("timeout", 10.0)), missing)
+
+        def unchanged() -> bool:
+            files = {p.name for p in tests_dir.iterdir()} - {"__pycache__"}
+            if files != set(job["tests"]) | {"pytest.ini"}:
+                return False
+            return all((tests_dir / n).read_text() == t for n, t in job["tests"].items())
+
+        plugin.tamper_check = unchanged
+        args = [str(tests_dir), "-q", "-c", str(ini), "--rootdir", str(tests_dir), "--noconftest",
+                "--confcutdir", str(tests_dir), "--import-mode=importlib", "-p", "no:cacheprovider",
+                "-o", "python_files=test_*.py", "-o", "addopts=", "-o", "console_output_style=classic"]
+        try:
+            pytest.main(args, plugins=[plugin])
+        finally:
+            if sandbox is not None:
+                sandbox.kill()
+        return {"results": plugin.results, "errors": plugin.collect_errors}
+    finally:
+        shutil.rmtree(root, ignore_errors=True)
+
+
+def main() -> None:
+    _not_dumpable()
+    sys.dont_write_bytecode = True
+    out = os.fdopen(os.dup(1), "w")
+    job = json.loads(sys.stdin.read())
+    devnull = os.open(os.devnull, os.O_RDWR)
+    for fd in (0, 1, 2):
+        os.dup2(devnull, fd)
+    try:
+        result = run_job(job)
+    except Exception as err:  # noqa: BLE001 - reported to the grader, which fails the exercise
+        result = {"results": {}, "errors": [f"runner failed: {type(err).__name__}: {err}"]}
+    out.write(job["nonce"] + " " + json.dumps(result) + "\n")
+    out.flush()
+
+
+if __name__ == "__main__":
+    main()
