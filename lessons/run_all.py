@@ -1,0 +1,58 @@
+"""Re-execute lesson notebooks in place, so their stored outputs match the current library.
+
+Usage (from the repository root)::
+
+    .venv/bin/python lessons/run_all.py                 # every lessons/NN_*.ipynb
+    .venv/bin/python lessons/run_all.py lessons/01_euler_taylor.ipynb
+
+Each notebook runs top to bottom in a fresh ``python3`` kernel with ``lessons/`` as the
+working directory; cells tagged ``raises-exception`` may raise. Afterwards check them
+with nbval (twice, to be sure the outputs are reproducible)::
+
+    .venv/bin/python -m pytest -q -p no:randomly --nbval --nbval-current-env \
+        --nbval-sanitize-with lessons/sanitize.cfg lessons/
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import nbformat
+from nbclient import NotebookClient
+
+HERE = Path(__file__).resolve().parent
+
+
+def execute(path: Path, timeout: int = 300) -> float:
+    """Run one notebook in place; returns the seconds it took."""
+    nb = nbformat.read(path, as_version=4)
+    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
+    start = time.perf_counter()
+    NotebookClient(nb, timeout=timeout, kernel_name="python3",
+                   resources={"metadata": {"path": str(path.parent)}}).execute()
+    elapsed = time.perf_counter() - start
+    missing = [i for i, c in enumerate(nb.cells) if c.cell_type == "code" and c.execution_count is None]
+    if missing:
+        raise RuntimeError(f"{path.name}: code cells {missing} have no execution count")
+    nbformat.write(nb, path)
+    return elapsed
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("notebooks", nargs="*", type=Path,
+                        help="notebooks to run (default: every lessons/NN_*.ipynb)")
+    parser.add_argument("--timeout", type=int, default=300, help="seconds per cell")
+    args = parser.parse_args(argv)
+    paths = args.notebooks or sorted(HERE.glob("[0-9][0-9]_*.ipynb"))
+    for path in paths:
+        elapsed = execute(path, args.timeout)
+        print(f"{path}: executed in {elapsed:.1f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
