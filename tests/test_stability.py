@@ -1,0 +1,236 @@
+"""mslab.stability against closed forms, against the stepping code, and against real runs."""
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+import sympy
+from scipy.optimize import brentq
+
+import mslab
+from mslab import stability as st
+from mslab.scenes.generators import chain, cloth, oscillator
+
+RNG = np.random.default_rng(4)
+Z = RNG.normal(size=40) * 2 + 1j * RNG.normal(size=40) * 2
+
+CLOSED = {
+    "euler": lambda z: 1 + z,
+    "heun": lambda z: 1 + z + z**2 / 2,
+    "midpoint": lambda z: 1 + z + z**2 / 2,
+    "rk3": lambda z: 1 + z + z**2 / 2 + z**3 / 6,
+    "rk4": lambda z: 1 + z + z**2 / 2 + z**3 / 6 + z**4 / 24,
+    "implicit_euler": lambda z: 1 / (1 - z),
+    "implicit_euler_fp": lambda z: 1 / (1 - z),
+    "implicit_midpoint": lambda z: (1 + z / 2) / (1 - z / 2),
+}
+PARTITIONED = ["symplectic_euler", "symplectic_euler_x", "verlet", "leapfrog", "velocity_verlet"]
+
+
+@pytest.mark.parametrize("method", sorted(CLOSED))
+def test_R_matches_closed_form(method):
+    np.testing.assert_allclose(st.amplification(method, Z), CLOSED[method](Z), rtol=1e-13)
+
+
+@pytest.mark.parametrize("method", sorted(CLOSED))
+def test_sympy_R_matches_closed_form(method):
+    z = sympy.Symbol("z")
+    expr = st.amplification_sympy(method)
+    exact = CLOSED[method](z) if "implicit" not in method else CLOSED[method](sympy.Integer(1) * z)
+    assert sympy.simplify(expr - sympy.nsimplify(exact)) == 0
+
+
+def test_sympy_refuses_partitioned_methods():
+    with pytest.raises(TypeError, match="amplification_matrix"):
+        st.amplification_sympy("verlet")
+
+
+def test_amplification_is_vectorised_over_shapes():
+    z = Z.reshape(5, 8)
+    for method in ("rk4", "verlet", "implicit_midpoint"):
+        assert st.amplification(method, z).shape == (5, 8)
+
+
+POINTS = [(0.3, 0.0), (0.9, 0.0), (1.7, 0.0), (1.3, 0.2), (0.6, 0.05), (2.5, 1.0)]
+
+
+@pytest.mark.parametrize("method", mslab.methods())
+def test_measured_map_equals_theory(method):
+    """The amplification matrix written from the update equations = the one the real step makes."""
+    for h_omega, h_gamma in POINTS:
+        if method == "implicit_euler_fp" and h_omega > 0.8:
+            continue  # the fixed-point iteration only converges for dt |lam| < 1
+        theory = st.amplification_matrix(method, h_omega, h_gamma)
+        measured = st.measured_amplification_matrix(method, h_omega, h_gamma)
+        tol = 1e-6 if method == "implicit_euler_fp" else 1e-10
+        assert st.same_spectrum(theory, measured) < tol, (method, h_omega, h_gamma)
+        rho_t = st.spectral_radius(theory)
+        rho_m = st.spectral_radius(measured)
+        assert rho_t == pytest.approx(rho_m, rel=tol, abs=tol)
+
+
+@pytest.mark.parametrize("method", sorted(set(CLOSED) - {"implicit_euler_fp"}))
+def test_matrix_of_RK_method_has_eigenvalues_R(method):
+    """For a tableau, the oscillator map is R(dt J): its eigenvalues are R(z), R(conj z)."""
+    h_omega, h_gamma = 1.1, 0.3
+    lam = np.roots([1.0, h_gamma, h_omega**2])
+    mu = np.linalg.eigvals(st.amplification_matrix(method, h_omega, h_gamma))
+    expected = CLOSED[method](lam)
+    assert st.same_spectrum(np.diag(mu), np.diag(expected)) < 1e-12
+
+
+@pytest.mark.parametrize("method", PARTITIONED)
+def test_partitioned_R_is_largest_eigenvalue_of_the_oscillator_map(method):
+    z = -0.3 + 1.2j  # the oscillator with eigenvalues z, conj z: w^2 = |z|^2, gamma = -2 Re z
+    mats = st.measured_amplification_matrix(method, abs(z), -2 * z.real)
+    assert abs(st.amplification(method, z)) == pytest.approx(st.spectral_radius(mats), rel=1e-10)
+
+
+# -- limits, against values computed independently here ------------------------------------------
+
+def _poly_root(method, lo, hi, direction):
+    return brentq(lambda s: abs(CLOSED[method](direction * s)) - 1.0, lo, hi, xtol=1e-14)
+
+
+def test_real_intervals():
+    assert st.real_interval("euler") == pytest.approx(-2.0, abs=1e-8)
+    assert st.real_interval("heun") == pytest.approx(-2.0, abs=1e-8)
+    assert st.real_interval("midpoint") == pytest.approx(-2.0, abs=1e-8)
+    assert st.real_interval("rk4") == pytest.approx(-_poly_root("rk4", 2.5, 3.0, -1), abs=1e-8)
+    assert st.real_interval("rk4") == pytest.approx(-2.785, abs=1e-3)
+    assert st.real_interval("rk3") == pytest.approx(-_poly_root("rk3", 2.0, 3.0, -1), abs=1e-8)
+    for m in ("implicit_euler", "implicit_euler_fp", "implicit_midpoint"):
+        assert st.real_interval(m) == -np.inf
+
+
+def test_imag_limits():
+    assert st.imag_limit("euler") == 0.0
+    assert st.imag_limit("heun") == 0.0
+    assert st.imag_limit("midpoint") == 0.0
+    assert st.imag_limit("rk4") == pytest.approx(2 * math.sqrt(2), abs=1e-8)
+    assert st.imag_limit("rk4") == pytest.approx(_poly_root("rk4", 2.5, 3.0, 1j), abs=1e-8)
+    assert st.imag_limit("rk3") == pytest.approx(math.sqrt(3), abs=1e-8)
+    for m in ("implicit_euler", "implicit_midpoint"):
+        assert st.imag_limit(m) == np.inf
+
+
+def _measured_oscillator_limit(method):
+    """Bisection on the spectral radius of the map measured from the real step."""
+    def stable(w):
+        return st.spectral_radius(st.measured_amplification_matrix(method, w, 0.0, delta=1e-3)) <= 1 + 1e-7
+
+    lo, hi = 0.5, 6.0
+    assert stable(lo) and not stable(hi)
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+    return lo
+
+
+@pytest.mark.parametrize("method", PARTITIONED + ["rk4"])
+def test_oscillator_limit_against_bisection_on_the_real_step(method):
+    expected = 2.0 if method in PARTITIONED else 2 * math.sqrt(2)
+    assert st.oscillator_limit(method) == pytest.approx(expected, abs=1e-7)
+    assert st.oscillator_limit(method) == pytest.approx(_measured_oscillator_limit(method), abs=1e-5)
+
+
+def test_oscillator_limits_of_unstable_and_implicit_methods():
+    for m in ("euler", "heun", "midpoint"):
+        assert st.oscillator_limit(m) == 0.0  # |R(i y)| > 1 for every y > 0
+    for m in ("implicit_euler", "implicit_euler_fp", "implicit_midpoint"):
+        assert st.oscillator_limit(m) == np.inf
+
+
+def test_summary_rows():
+    rows = st.summary(["euler", "rk4"])
+    assert [r["method"] for r in rows] == ["euler", "rk4"]
+    assert rows[1]["imag_limit"] == st.imag_limit("rk4")
+
+
+# -- step limits of scenes ----------------------------------------------------------------------
+
+def test_max_stable_dt_on_the_oscillator_is_limit_over_omega():
+    scene = oscillator(stiffness=400.0, mass=1.0)  # w = 20
+    for m in mslab.methods():
+        if m == "implicit_euler_fp":
+            assert st.max_stable_dt(scene, m) == pytest.approx(1 / 20)  # contraction limit
+        else:
+            assert st.max_stable_dt(scene, m) == pytest.approx(st.oscillator_limit(m) / 20, rel=1e-9)
+
+
+def test_max_stable_dt_of_euler_on_a_damped_oscillator():
+    """Forward Euler: |1 + h lam| <= 1 with lam = -beta +- i wd gives h = 2 beta / w0^2 = gamma / k."""
+    k, gamma = 100.0, 2.0
+    scene = oscillator(stiffness=k, mass=1.0, gamma=gamma)
+    assert st.max_stable_dt(scene, "euler") == pytest.approx(gamma / k, rel=1e-8)
+    assert st.max_stable_dt(scene, "implicit_euler") == np.inf
+
+
+def test_collider_stiffness_limits_the_step():
+    b = mslab.SceneBuilder(2)
+    a = b.add_particle([0.0, 1.0], pinned=True)
+    p = b.add_particle([0.0, 0.5], mass=2.0)
+    b.add_spring(a, p, stiffness=50.0)
+    b.add_plane(normal=[0, 1], offset=0.0, stiffness=5000.0)  # not touching at state0
+    scene = b.build()
+    w = math.sqrt(5000.0 / 2.0)  # the plane, with the spring's 50 added along the same axis
+    w_both = math.sqrt(5050.0 / 2.0)
+    assert st.max_stable_dt(scene, "verlet") == pytest.approx(2 / w_both, rel=1e-9)
+    active = st.max_stable_dt(scene, "verlet", contacts="active")
+    assert active == pytest.approx(2 / math.sqrt(25.0), rel=1e-9)
+    assert 2 / w_both < 2 / w
+
+
+def _true_limit(scene, method, guess, steps=1500):
+    """Bisection with real runs: the largest dt whose energy error stays below twice its scale."""
+    ref = mslab.simulate(scene, method, dt=0.5 * guess, t_end=0.5 * guess * steps, save_every=10,
+                         check_stability=False)
+    scale = float(np.max(ref.energy.kinetic + np.abs(ref.energy.potential)))
+
+    def stable(dt):
+        try:
+            tr = mslab.simulate(scene, method, dt=dt, t_end=dt * steps, save_every=10, blowup=10,
+                                check_stability=False)
+        except mslab.InstabilityError:
+            return False
+        return float(np.max(np.abs(tr.energy.total - tr.energy.total[0]))) < 2.0 * scale
+
+    lo, hi = 0.5 * guess, 2.0 * guess
+    assert stable(lo) and not stable(hi)
+    for _ in range(8):
+        mid = math.sqrt(lo * hi)
+        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+    return math.sqrt(lo * hi)
+
+
+@pytest.mark.parametrize("name", ["chain", "cloth", "damped_chain"])
+@pytest.mark.parametrize("method", ["symplectic_euler", "verlet", "rk4"])
+def test_max_stable_dt_within_10_percent_of_real_runs(name, method):
+    scene = {"chain": lambda: chain(12, stiffness=2e3),
+             "cloth": lambda: cloth(5, 5),
+             "damped_chain": lambda: chain(12, stiffness=2e3, gamma=0.3)}[name]()
+    predicted = st.max_stable_dt(scene, method)
+    actual = _true_limit(scene, method, predicted)
+    assert abs(actual / predicted - 1) < 0.10, (predicted, actual)
+
+
+def test_simulate_warns_above_the_prediction_and_counts_nothing():
+    scene = oscillator(stiffness=1e4, displacement=0.1, t_end=0.2)  # w = 100: rk4 limit 0.0283
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        quiet = mslab.simulate(scene, "rk4", dt=0.02)
+    off = mslab.simulate(scene, "rk4", dt=0.02, check_stability=False)
+    assert quiet.stats.n_force == off.stats.n_force == 4 * 10 and quiet.stats.n_jac == 0
+    with pytest.warns(mslab.StabilityWarning, match="0.02828"):
+        with pytest.raises(mslab.InstabilityError) as info:
+            mslab.simulate(scene.with_settings(t_end=2.0), "rk4", dt=0.04)
+    assert info.value.stable_dt == pytest.approx(2 * math.sqrt(2) / 100, rel=1e-6)
+    assert "predicted stable dt = 0.02828" in str(info.value)
+
+
+def test_no_check_for_implicit_methods():
+    scene = oscillator(stiffness=1e4, displacement=0.1, t_end=0.5)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        mslab.simulate(scene, "implicit_euler", dt=0.1)
