@@ -6,7 +6,7 @@ Public API (see DESIGN.md); this module only re-exports.
 from mslab.errors import ConvergenceError, InstabilityError, MslabError, SceneError, StabilityWarning
 from mslab.integrators import ExplicitRK, Integrator, get_method, methods
 from mslab.integrators.base import COURSE_METHODS
-from mslab.scenes import Scene, SceneBuilder, Settings
+from mslab.scenes import Scene, SceneBuilder, Settings, load_scene, scene_names
 from mslab.simulate import Energy, SimulationInterrupted, Stats, Trajectory, simulate
 from mslab.state import State
 from mslab.system import System
@@ -16,5 +16,6 @@ __version__ = "0.1.0"
 __all__ = [
     "COURSE_METHODS", "ConvergenceError", "Energy", "ExplicitRK", "InstabilityError", "Integrator",
     "MslabError", "Scene", "SceneBuilder", "SceneError", "Settings", "SimulationInterrupted",
-    "StabilityWarning", "State", "Stats", "System", "Trajectory", "get_method", "methods", "simulate",
+    "StabilityWarning", "State", "Stats", "System", "Trajectory", "get_method", "load_scene", "methods",
+    "scene_names", "simulate",
 ]

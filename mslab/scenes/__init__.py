@@ -1,6 +1,10 @@
-"""Scenes: the programmatic builder, generators, and (later) TOML scene files."""
+"""Scenes: the programmatic builder, generators, and TOML scene files (``load_scene``)."""
 
 from mslab.scenes.builder import Scene, SceneBuilder, Settings
 from mslab.scenes.generators import chain, cloth, grid_springs, lattice, oscillator, oscillator_solution
+from mslab.scenes.loader import load_scene, scene_names, scene_path
 
-__all__ = ["Scene", "SceneBuilder", "Settings", "chain", "cloth", "grid_springs", "lattice", "oscillator", "oscillator_solution"]
+__all__ = [
+    "Scene", "SceneBuilder", "Settings", "chain", "cloth", "grid_springs", "lattice", "load_scene",
+    "oscillator", "oscillator_solution", "scene_names", "scene_path",
+]
