@@ -170,3 +170,26 @@ def test_wrapped_system_keeps_the_numpy_loop():
     scene.system.rhs = logged
     traj = mslab.simulate(scene, "heun", dt=1e-2, t_end=0.1)
     assert len(calls) == traj.stats.n_force == 20
+
+
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_jacobian_fixed_pattern_equals_coo_assembly(dim):
+    """Springs assemble into a CSR pattern built once; equal to pair_blocks (COO -> CSR) every call."""
+    from mslab.effects.base import pair_blocks
+
+    rng = np.random.default_rng(5 + dim)
+    springs = random_springs(rng, n=9, m=25, dim=dim)
+    for _ in range(3):  # the pattern of the first call is reused by the next ones
+        blocks = rng.normal(size=(25, dim, dim))
+        new, old = springs._assemble(blocks), pair_blocks(blocks, springs.i, springs.j, springs.n)
+        assert new.shape == old.shape and new.has_sorted_indices
+        assert np.array_equal(new.indptr, old.indptr) and np.array_equal(new.indices, old.indices)
+        assert close(new.toarray(), old.toarray(), 1e-14)
+    x, v = rng.normal(size=(9, dim)), rng.normal(size=(9, dim))
+    K, D = springs.jacobians(x, v)
+    eps = 1e-6  # and the assembled Jacobian is df/dx by central differences
+    with fast.use_backend("numpy"):
+        fd = np.column_stack([(springs.force(x + eps * e.reshape(x.shape), v)
+                               - springs.force(x - eps * e.reshape(x.shape), v)).ravel() / (2 * eps)
+                              for e in np.eye(x.size)])
+    assert np.allclose(K.toarray(), fd, atol=1e-6 * max(1.0, np.abs(fd).max()))

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 
 from mslab import fast
-from mslab.effects.base import Effect, pair_blocks
+from mslab.effects.base import Effect
 
 
 def scatter_pairs(f: np.ndarray, i: np.ndarray, j: np.ndarray, n: int) -> np.ndarray:
@@ -57,6 +58,7 @@ class Springs(Effect):
         self.velocity_dependent = damped
         self.dissipative = damped
         self.conservative = True  # the Hooke part has a potential; damping is booked as power
+        self._csr = None  # Jacobian sparsity pattern, built on first use (see _assemble)
 
     def _geometry(self, x):
         d = x[self.i] - x[self.j]
@@ -120,8 +122,41 @@ class Springs(Effect):
             inv_l = np.where(length > 0.0, 1.0 / np.where(length > 0, length, 1.0), 0.0)
             c = (self.damping * inv_l)[:, None, None]
             bx = bx - c * (u[:, :, None] * pdv[:, None, :] + rate[:, None, None] * proj)
-            dfdv = pair_blocks(-self.damping[:, None, None] * uu, self.i, self.j, self.n)
-        return pair_blocks(bx, self.i, self.j, self.n), dfdv
+            dfdv = self._assemble(-self.damping[:, None, None] * uu)
+        return self._assemble(bx), dfdv
+
+    def _assemble(self, blocks: np.ndarray) -> sp.csr_matrix:
+        """``mslab.effects.base.pair_blocks(blocks, i, j, n)`` into a CSR pattern computed once and reused.
+
+        The sparsity pattern of a spring Jacobian never changes, so the sorting of a
+        COO -> CSR conversion is done on the first call only: later calls sum the block
+        entries into the stored slots (``np.bincount`` over a precomputed index map).
+        """
+        m, dim, _ = blocks.shape
+        if self._csr is None or self._csr[0] != dim:
+            self._csr = (dim,) + self._pattern(dim)
+        _, slot, indices, indptr = self._csr
+        size = self.n * dim
+        b = blocks.ravel()
+        data = np.bincount(slot, weights=np.concatenate([b, b, -b, -b]), minlength=indices.size)
+        return sp.csr_matrix((data, indices, indptr), shape=(size, size))
+
+    def _pattern(self, dim: int):
+        """Slot of every block entry (the order of ``_assemble``'s data), CSR indices, indptr."""
+        size = self.n * dim
+        ri = self.i[:, None] * dim + np.arange(dim)[None, :]
+        rj = self.j[:, None] * dim + np.arange(dim)[None, :]
+
+        def grid(a, b):  # (row, col) of each entry of the blocks, in blocks.ravel() order
+            return np.repeat(a, dim, axis=1).ravel(), np.tile(b, (1, dim)).ravel()
+
+        # +B at (i, i) and (j, j), then -B at (i, j) and (j, i), as pair_blocks
+        pairs = [grid(ri, ri), grid(rj, rj), grid(ri, rj), grid(rj, ri)]
+        rows = np.concatenate([p[0] for p in pairs])
+        cols = np.concatenate([p[1] for p in pairs])
+        keys, slot = np.unique(rows * size + cols, return_inverse=True)
+        indptr = np.searchsorted(keys // size, np.arange(size + 1)).astype(np.int32)
+        return slot, (keys % size).astype(np.int32), indptr
 
     def __repr__(self):
         return f"Springs(n_springs={len(self.springs)})"
