@@ -1,0 +1,204 @@
+"""``mslab precision SCENE``: convergence and work-precision of the methods, scipy on the same axes.
+
+Runs every (method, dt) of a sweep on one scene, measures the error against the
+reference solution (closed form or scipy DOP853 at 1e-12), counts the work and times the
+runs; scipy's ``solve_ivp`` (RK45, DOP853, Radau, BDF) runs over a tolerance sweep on the
+same forces. Prints a table and the fitted orders; ``--out DIR`` writes the figures
+(error vs wall time, error vs force evaluations, error vs dt) and ``precision.json``.
+
+``--jobs N`` runs the error runs in N processes; the timing runs always run one at a
+time in the main process afterwards, so no timing shares the machine with the sweep's
+other runs (other programs on the machine still count: for clean timings keep it idle).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+from mslab.commands.common import CommandError, add_common_options, atomic_write, emit_json, out_dir, say
+
+#: scenes generated in code when no scene file of that name exists
+GENERATED = ("chain", "oscillator")
+
+
+def resolve_scene(spec: str, **overrides):
+    """A scene by name or path through ``mslab.load_scene``; generator names as fallback.
+
+    ``oscillator`` (and ``chain`` while no scene file is installed) come from
+    :mod:`mslab.scenes.generators`. ``overrides`` (dt, t_end, ...) replace run settings.
+    """
+    from mslab.errors import SceneError
+
+    given = {k: v for k, v in overrides.items() if v is not None}
+    load_scene = None
+    try:
+        from mslab.scenes.loader import load_scene
+    except ImportError:
+        pass
+    if load_scene is not None:
+        try:
+            return load_scene(spec, **given)
+        except SceneError:
+            if spec not in GENERATED:
+                raise
+    if spec not in GENERATED:
+        raise CommandError(f"unknown scene '{spec}'; valid here: {', '.join(GENERATED)}", key="SCENE")
+    from mslab.scenes import generators
+
+    scene = getattr(generators, spec)()
+    return scene.with_settings(**given) if given else scene
+
+
+def course_methods() -> list[str]:
+    from mslab.integrators.base import COURSE_METHODS, methods
+
+    known = set(methods())
+    return [m for m in COURSE_METHODS if m in known]
+
+
+def method_list(names) -> list[str]:
+    """Registry names of the methods asked for (``-`` or ``_``); course methods by default."""
+    from mslab.integrators.base import get_method
+
+    if not names:
+        return course_methods()
+    return [get_method(n).name for n in names]
+
+
+def fmt(value, spec: str = ".3g") -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, float) and not math.isfinite(value):
+        return "inf" if value > 0 else ("nan" if math.isnan(value) else "-inf")
+    return format(value, spec) if isinstance(value, float) else str(value)
+
+
+def table(rows: list[list[str]], header: list[str]) -> str:
+    """Plain fixed-width table; first column left-aligned, the others right-aligned."""
+    widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(len(header))]
+
+    def line(r):
+        return "  ".join(str(c).ljust(w) if i == 0 else str(c).rjust(w)
+                         for i, (c, w) in enumerate(zip(r, widths, strict=True)))
+
+    return "\n".join([line(header), "  ".join("-" * w for w in widths), *(line(r) for r in rows)])
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "precision", help="convergence and work-precision of the methods (scipy on the same axes)",
+        description="Error against dt, force evaluations and wall time for each method on one scene, "
+                    "with scipy's solve_ivp (RK45, DOP853, Radau, BDF) over a tolerance sweep.")
+    p.add_argument("scene", metavar="SCENE", help="built-in scene name, TOML file, or 'oscillator'")
+    p.add_argument("--methods", nargs="+", metavar="M", help="methods (default: the course's)")
+    p.add_argument("--dts", nargs="+", type=float, metavar="DT",
+                   help="steps (default: the scene's dt times 16, 8, 4, 2, 1); each must divide t_end")
+    p.add_argument("--t-end", type=float, default=None, help="end time (default: the scene's)")
+    p.add_argument("--scipy", nargs="*", metavar="S", default=None,
+                   help="solve_ivp methods (default: RK45 DOP853 Radau BDF; give none to leave scipy out)")
+    p.add_argument("--rtols", nargs="+", type=float, metavar="RTOL", help="scipy tolerance sweep")
+    p.add_argument("--no-timing", action="store_true", help="errors and counts only (much faster)")
+    p.add_argument("--repeats", type=int, default=3, help="timed runs per record, minimum kept (default 3)")
+    p.add_argument("--budget", type=float, default=1.0,
+                   help="seconds of timed runs per record before stopping early (default 1)")
+    p.add_argument("--jobs", type=int, default=1,
+                   help="processes for the error runs; timings stay serial (default 1)")
+    add_common_options(p)
+    p.set_defaults(func=run)
+
+
+def write_json(path, doc: dict):
+    """Write ``doc`` as JSON to ``path`` atomically."""
+    from mslab.commands.common import to_jsonable
+
+    text = json.dumps(to_jsonable(doc), indent=2) + "\n"
+
+    def write(tmp: str) -> None:
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(text)
+
+    return atomic_write(path, write)
+
+
+def run(args) -> int:
+    from mslab import precision
+    from mslab.integrators.base import get_method
+    from mslab.simulate import step_count
+
+    if args.jobs < 1 or args.repeats < 1 or args.budget < 0:
+        raise CommandError("--jobs and --repeats must be >= 1, --budget >= 0")
+    scene = resolve_scene(args.scene)
+    t_end = float(args.t_end if args.t_end is not None else scene.settings.t_end)
+    if args.dts:
+        dts = args.dts
+    else:
+        dts = precision.whole_dts([scene.settings.dt * 2 ** k for k in (4, 3, 2, 1, 0)], t_end)
+    for dt in dts:
+        try:
+            step_count(t_end, dt)
+        except ValueError as err:
+            raise CommandError(str(err), key="--dts") from None
+    methods = method_list(args.methods)
+    scipy_methods = precision.SCIPY_METHODS if args.scipy is None else tuple(args.scipy)
+    for s in scipy_methods:
+        if s not in ("RK45", "RK23", "DOP853", "Radau", "BDF", "LSODA"):
+            raise CommandError(f"unknown solve_ivp method '{s}'; valid: RK45 RK23 DOP853 Radau BDF LSODA",
+                               key="--scipy")
+    records = precision.work_precision(
+        scene, methods, dts, t_end, scipy_methods=scipy_methods, rtols=args.rtols or precision.SCIPY_RTOLS,
+        timing=not args.no_timing, repeats=args.repeats, budget=args.budget, jobs=args.jobs, progress=None)
+    orders = {m: precision.fit_order([r["dt"] for r in records if r["method"] == m],
+                                     [r["error"] for r in records if r["method"] == m]) for m in methods}
+    expected = {m: get_method(m).order for m in methods}
+    figures = _figures(args, records, orders, expected)
+    doc = {"scene": scene.name, "t_end": t_end, "dts": dts, "reference": records[0]["reference"]
+           if records else None, "records": records, "orders": orders, "expected_orders": expected,
+           "figures": figures, "jobs": args.jobs}
+    folder = out_dir(args)
+    if folder is not None:
+        write_json(folder / "precision.json", doc)
+    if args.json:
+        emit_json(doc)
+        return 0
+    rows = [[r["method"], fmt(r["dt"]), fmt(r["rtol"], ".0e"), r["steps"], r["n_force"], r["n_jac"],
+             r["n_solve"], fmt(r["error"], ".2e"), fmt(r["error_rms"], ".2e"),
+             fmt(r["wall_time"], ".3g") if r["ok"] else "blew up"] for r in records]
+    say(args, f"{scene.name}: t_end = {t_end:g}, reference = {doc['reference']}")
+    header = ["method", "dt", "rtol", "steps", "n_force", "n_jac", "n_solve", "error", "error_rms",
+              "wall_time [s]"]
+    say(args, table(rows, header))
+    say(args, "fitted orders: " + ", ".join(f"{m} {fmt(orders[m], '.2f')} (expected {expected[m]})"
+                                             for m in methods))
+    for f in figures:
+        say(args, f"wrote {f}")
+    return 0
+
+
+def _figures(args, records, orders, expected) -> list[str]:
+    folder = out_dir(args)
+    if folder is None:
+        return []
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from mslab.commands.common import save_figure
+    from mslab.plots.precision import plot_convergence, plot_work_precision
+    from mslab.precision import Convergence
+
+    written = []
+    for x, name in (("wall_time", "work_precision_time.png"), ("n_force", "work_precision_force.png")):
+        if x == "wall_time" and args.no_timing:
+            continue
+        fig, ax = plt.subplots(figsize=(7, 5))
+        plot_work_precision(records, ax=ax, x=x)
+        ax.set_title(f"work-precision: error vs {'wall time' if x == 'wall_time' else 'force evaluations'}")
+        written.append(str(save_figure(fig, folder / name)))
+    fig, ax = plt.subplots(figsize=(7, 5))
+    mslab_records = [r for r in records if r["solver"] == "mslab"]
+    plot_convergence(Convergence(mslab_records, orders, expected), ax=ax)
+    ax.set_title("convergence: error at t_end vs dt")
+    written.append(str(save_figure(fig, folder / "convergence.png")))
+    return written
