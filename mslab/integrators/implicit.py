@@ -62,7 +62,13 @@ class _NewtonVelocity(Integrator):
                 return self._finish(state, v_new, dt, p)
             K, D = system.jacobians(X, V)
             lin = K * dxdv if D is None else K * dxdv + D * dvdv
-            J = sp.identity(size, format="csc") - dt * (minv @ lin)
+            step_matrix = dt * (minv @ lin)
+            J = sp.identity(size, format="csc") - step_matrix
+            # roundoff floor of the residual: stiff springs (k/m ~ 1e9) amplify the rounding
+            # of positions by dt * |M^-1 K|; below that no iteration can go
+            if step_matrix.nnz:
+                floor = 8.0 * np.finfo(float).eps * float(abs(step_matrix).sum(axis=1).max()) / dxdv
+                tol = max(tol, floor * _scale(X))
             dv = spla.spsolve(J.tocsc(), -residual.ravel())
             c.n_solve += 1
             v_new = v_new + dv.reshape(v0.shape)
