@@ -8,3 +8,6 @@ __all__ += ["plot_convergence", "plot_energy_drift", "plot_work_precision"]
 from mslab.plots.stability import plot_oscillator_stability, plot_stability_regions  # noqa: E402
 
 __all__ += ["plot_oscillator_stability", "plot_stability_regions"]
+from mslab.plots.scene import animate, plot_configuration  # noqa: E402
+
+__all__ += ["animate", "plot_configuration"]
