@@ -423,19 +423,48 @@ def scipy_records(scene: Scene, t_end: float | None = None, methods=SCIPY_METHOD
     return work_precision(scene, (), (), t_end, scipy_methods=methods, rtols=rtols, **kwargs)
 
 
-def fit_order(dts, errors, floor: float = ROUNDOFF_FLOOR) -> float:
+def fit_order(dts, errors, floor: float = ROUNDOFF_FLOOR, ceiling: float = math.inf) -> float:
     """Least-squares slope of ``log(error)`` against ``log(dt)``.
 
-    Points with a non-finite error or one below ``floor`` (round-off) are left out;
-    nan when fewer than two points remain.
+    Points with a non-finite error, one below ``floor`` (round-off) or one above
+    ``ceiling`` (not yet in the asymptotic range) are left out; nan when fewer than two
+    points remain.
     """
     dts = np.asarray(dts, dtype=float)
     errors = np.asarray(errors, dtype=float)
-    keep = np.isfinite(errors) & (errors > floor) & (dts > 0)
+    keep = np.isfinite(errors) & (errors > floor) & (errors < ceiling) & (dts > 0)
     if np.count_nonzero(keep) < 2 or np.unique(dts[keep]).size < 2:
         return math.nan
     slope, _ = np.polyfit(np.log(dts[keep]), np.log(errors[keep]), 1)
     return float(slope)
+
+
+def error_ceiling(scene: Scene, t_end: float) -> float:
+    """A tenth of the solution's size: larger errors are outside the asymptotic range.
+
+    The size is the larger of the scene's extent (bounding-box diagonal of the initial and
+    the reference final positions) and the largest reference speed at ``t_end``.
+    """
+    ref = reference_solution(scene, t_end)
+    x = np.concatenate([scene.state0.x, ref.x_end])
+    extent = float(np.linalg.norm(x.max(axis=0) - x.min(axis=0)))
+    return 0.1 * max(extent, float(np.max(np.abs(ref.v_end))), 1e-300)
+
+
+def fitted_orders(records, floor: float = ROUNDOFF_FLOOR, ceiling: float = math.inf) -> dict:
+    """:func:`fit_order` of each mslab method in work-precision records; also sets each
+    record's ``local_order`` (the slope from the next larger dt)."""
+    orders = {}
+    names = list(dict.fromkeys(r["method"] for r in records if r.get("solver", "mslab") == "mslab"))
+    for m in names:
+        rows = sorted((r for r in records if r["method"] == m), key=lambda r: -r["dt"])
+        prev = None
+        for r in rows:
+            r["local_order"] = (fit_order([prev["dt"], r["dt"]], [prev["error"], r["error"]], floor, ceiling)
+                                if prev is not None else math.nan)
+            prev = r
+        orders[m] = fit_order([r["dt"] for r in rows], [r["error"] for r in rows], floor, ceiling)
+    return orders
 
 
 @dataclass
@@ -462,7 +491,8 @@ class Convergence:
 
 
 def convergence(scene: Scene, methods, dts, t_end: float | None = None, *, floor: float = ROUNDOFF_FLOOR,
-                n_save: int = 100, jobs: int = 1, progress: bool | None = False) -> Convergence:
+                ceiling: float | None = None, n_save: int = 100, jobs: int = 1,
+                progress: bool | None = False) -> Convergence:
     """Global error at ``t_end`` against ``dt`` and the fitted order of each method.
 
     Parameters
@@ -475,23 +505,20 @@ def convergence(scene: Scene, methods, dts, t_end: float | None = None, *, floor
     t_end : float, optional
     floor : float
         Errors below it are round-off and left out of the fit.
+    ceiling : float, optional
+        Errors above it are left out of the fit (default :func:`error_ceiling`, a tenth of
+        the solution's size).
 
     Returns
     -------
     Convergence
     """
+    t_end = float(scene.settings.t_end if t_end is None else t_end)
     records = work_precision(scene, methods, dts, t_end, timing=False, n_save=n_save, jobs=jobs,
                              progress=progress)
-    orders, expected = {}, {}
-    for m in _method_names(methods):
-        rows = sorted((r for r in records if r["method"] == m), key=lambda r: -r["dt"])
-        prev = None
-        for r in rows:
-            r["local_order"] = (fit_order([prev["dt"], r["dt"]], [prev["error"], r["error"]], floor)
-                                if prev is not None else math.nan)
-            prev = r
-        orders[m] = fit_order([r["dt"] for r in rows], [r["error"] for r in rows], floor)
-        expected[m] = get_method(m).order
+    ceiling = error_ceiling(scene, t_end) if ceiling is None else ceiling
+    orders = fitted_orders(records, floor, ceiling)
+    expected = {m: get_method(m).order for m in orders}
     return Convergence(records, orders, expected)
 
 

@@ -148,8 +148,7 @@ def run(args) -> int:
     records = precision.work_precision(
         scene, methods, dts, t_end, scipy_methods=scipy_methods, rtols=args.rtols or precision.SCIPY_RTOLS,
         timing=not args.no_timing, repeats=args.repeats, budget=args.budget, jobs=args.jobs, progress=None)
-    orders = {m: precision.fit_order([r["dt"] for r in records if r["method"] == m],
-                                     [r["error"] for r in records if r["method"] == m]) for m in methods}
+    orders = precision.fitted_orders(records, ceiling=precision.error_ceiling(scene, t_end))
     expected = {m: get_method(m).order for m in methods}
     figures = _figures(args, records, orders, expected)
     doc = {"scene": scene.name, "t_end": t_end, "dts": dts, "reference": records[0]["reference"]
@@ -168,8 +167,12 @@ def run(args) -> int:
     header = ["method", "dt", "rtol", "steps", "n_force", "n_jac", "n_solve", "error", "error_rms",
               "wall_time [s]"]
     say(args, table(rows, header))
-    say(args, "fitted orders: " + ", ".join(f"{m} {fmt(orders[m], '.2f')} (expected {expected[m]})"
-                                             for m in methods))
+    local = {r["method"]: r["local_order"] for r in sorted(records, key=lambda r: -r["dt"])
+             if r["solver"] == "mslab"}   # slope between the two smallest dts
+    say(args, "orders: fitted over errors below a tenth of the solution's size; local = between the two "
+              "smallest dts")
+    say(args, table([[m, fmt(orders[m], ".2f"), fmt(local[m], ".2f"), expected[m]] for m in methods],
+                    ["method", "fitted", "local", "expected"]))
     for f in figures:
         say(args, f"wrote {f}")
     return 0
