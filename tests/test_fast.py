@@ -10,7 +10,11 @@ from mslab import fast
 from mslab.effects import Springs
 from mslab.scenes import generators
 
-pytestmark = pytest.mark.skipif(not fast.available(), reason="numba does not import")
+pytestmark = [
+    pytest.mark.skipif(not fast.available(), reason="numba does not import"),
+    # some runs below use methods outside their stability region on purpose (equality, blow-up)
+    pytest.mark.filterwarnings("ignore::mslab.StabilityWarning"),
+]
 
 FAST_METHODS = ["euler", "heun", "midpoint", "rk3", "rk4", "symplectic_euler", "symplectic_euler_x",
                 "verlet", "leapfrog", "velocity_verlet"]

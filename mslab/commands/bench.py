@@ -1,0 +1,67 @@
+"""``mslab bench``: how fast mslab is, as ratios to references timed in the same run.
+
+Prints the targets of the compiled fast path (issue 5) and whether each one is met;
+``--quick`` (about half a minute) uses fewer steps and repeats and builds the 300 x 300
+cloth's springs directly instead of through the SceneBuilder. ``--out DIR`` also writes
+``bench.json`` and ``bench.md`` (the table). Exit code 0 whether or not the targets are
+met: timings are measurements, not tests.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+
+from mslab.commands.common import CommandError, add_common_options, atomic_write, emit_json, out_dir, say
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "bench",
+        help="speed of the compiled path as ratios to reference kernels",
+        description="Time mslab against references written in the benchmark (numba loops, "
+                    "scipy solve_ivp) and print the ratios and whether each target is met.",
+    )
+    p.add_argument("--quick", action="store_true", help="fewer steps and repeats (about 30 s)")
+    add_common_options(p)
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from mslab import fast
+    from mslab.fast import benchmarks
+
+    if not fast.available():
+        raise CommandError("needs numba, which does not import", where="bench")
+
+    def progress(name: str) -> None:
+        if sys.stderr.isatty() or not args.json:
+            say(args, f"  measuring {name} ...")
+
+    doc = benchmarks.run_all(quick=args.quick, progress=progress)
+    folder = out_dir(args)
+    if folder is not None:
+        atomic_write(folder / "bench.json", lambda p: _write(p, json.dumps(_plain(doc), indent=2)))
+        atomic_write(folder / "bench.md", lambda p: _write(p, benchmarks.table(doc) + "\n"))
+    if args.json:
+        emit_json(doc)
+        return 0
+    m = doc["machine"]
+    say(args, f"mslab bench{' --quick' if args.quick else ''}: {m['cpu']}, {m['cores']} cores, "
+              f"numpy {m['numpy']}, numba {m['numba']}, scipy {m['scipy']}, {m['date']}")
+    say(args, benchmarks.table(doc))
+    met = sum(t["met"] for t in doc["targets"])
+    say(args, f"{met} of {len(doc['targets'])} targets met (medians of repeats; a loaded machine "
+              f"moves the ratios)")
+    return 0
+
+
+def _plain(doc: dict) -> dict:
+    from mslab.commands.common import to_jsonable
+
+    return to_jsonable(doc)
+
+
+def _write(path, text: str) -> None:
+    with open(path, "w", encoding="utf-8") as fh:
+        fh.write(text)
