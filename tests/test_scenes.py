@@ -1,0 +1,240 @@
+"""Scene files: built-in scenes load, build exactly their declared effects, and run under every method;
+the validator names the key of every kind of mistake."""
+
+from __future__ import annotations
+
+import tomllib
+
+import numpy as np
+import pytest
+import scipy.linalg
+
+import mslab
+from mslab.effects import Damping, Gravity, Plane, Sphere
+from mslab.errors import ConvergenceError, InstabilityError, SceneError
+from mslab.scenes.loader import scene_path
+
+ISSUE_SCENES = ("pendulum", "chain", "hanging_rope", "stiff_chain", "mass_ratio", "cloth", "cloth_on_sphere",
+                "jelly_cube", "cube_no_shear", "topology_pair")
+EXPLICIT = tuple(m for m in mslab.methods() if mslab.get_method(m).explicit)
+#: scenes built to show that explicit methods (and fixed-point iteration) fail at their default dt
+MAY_FAIL = {"stiff_chain": EXPLICIT + ("implicit_euler_fp",), "cloth": EXPLICIT + ("implicit_euler_fp",)}
+
+
+@pytest.fixture(scope="module")
+def scenes():
+    return {name: mslab.load_scene(name) for name in mslab.scene_names()}
+
+
+def test_builtin_scenes_listed():
+    assert set(ISSUE_SCENES) <= set(mslab.scene_names())
+    for name in mslab.scene_names():
+        text = scene_path(name).read_text()
+        assert text.startswith("#"), f"{name}: the file should open with a comment on what it teaches"
+
+
+@pytest.mark.parametrize("name", ISSUE_SCENES)
+def test_declared_effects_are_built(name, scenes):
+    """Effects listed in the file (read here with tomllib) are exactly the effects of the System."""
+    doc = tomllib.loads(scene_path(name).read_text())
+    bodies = doc.get("bodies", [{"springs": doc.get("springs")}])
+    expected = []
+    if any(b.get("springs") for b in bodies):
+        expected.append("springs")
+    if "gravity" in doc:
+        expected.append("gravity")
+    if doc.get("damping", {}).get("gamma", 0) > 0:
+        expected.append("damping")
+    expected += [c["type"] for c in doc.get("colliders", [])]
+    assert sorted(scenes[name].effects) == sorted(expected)
+
+
+@pytest.mark.parametrize("name", ISSUE_SCENES)
+def test_every_method_runs_a_few_steps(name, scenes):
+    scene = scenes[name]
+    dt = scene.settings.dt
+    for method in mslab.methods():
+        try:
+            traj = mslab.simulate(scene, method, t_end=5 * dt, check_stability=False, backend="numpy")
+        except InstabilityError:
+            assert method in MAY_FAIL.get(name, ()), f"{name} under {method} failed"
+            continue
+        assert traj.complete and traj.stats.steps == 5
+        assert np.all(np.isfinite(traj.x))
+
+
+def test_springs_only_scene_never_touches_other_effects(monkeypatch, scenes):
+    """The chain lists only springs: gravity, drag and collider code must never run."""
+    assert scenes["chain"].effects == ["springs"]
+
+    def forbidden(*args, **kwargs):
+        raise AssertionError("an effect the scene does not list was evaluated")
+
+    for cls in (Gravity, Damping, Plane, Sphere):
+        for attr in ("force", "energy", "power", "jacobians", "force_and_power", "__init__"):
+            if hasattr(cls, attr):
+                monkeypatch.setattr(cls, attr, forbidden)
+    scene = mslab.load_scene("chain", t_end=0.02)
+    for method in ("symplectic_euler", "rk4", "implicit_euler"):
+        mslab.simulate(scene, method, check_stability=False, backend="numpy")
+
+
+def test_stiff_chain_is_beyond_every_explicit_limit(scenes):
+    """Fastest mode from the eigenvalues of M^-1 K (scipy, free particles): dt*w_max > 2*sqrt(2),
+    beyond the largest explicit limit (rk4's); so explicit methods must blow up, Newton must not."""
+    scene = scenes["stiff_chain"]
+    system, x0 = scene.system, scene.state0.x
+    K, _ = system.jacobians(x0, scene.state0.v)
+    free = np.repeat(~system.pinned, system.dim)
+    minv = np.repeat(1.0 / system.mass, system.dim)
+    A = -(minv[:, None] * K.toarray())[np.ix_(free, free)]
+    w_max = np.sqrt(np.max(scipy.linalg.eigvals(A).real))
+    dt = scene.settings.dt
+    assert dt * w_max > 2.0 * np.sqrt(2.0)
+    for method in EXPLICIT:
+        with pytest.raises(InstabilityError):
+            mslab.simulate(scene, method, t_end=1.0, check_stability=False, backend="numpy")
+    # fixed-point iteration contracts only while (dt w)^2 < 1
+    with pytest.raises(ConvergenceError):
+        mslab.simulate(scene, "implicit_euler_fp", t_end=0.1)
+    traj = mslab.simulate(scene, "implicit_euler", t_end=0.5)
+    assert traj.complete and np.all(np.isfinite(traj.x))
+
+
+def test_generator_topology_counts(scenes):
+    """Spring counts per kind from closed-form counts on a grid."""
+    def counts(scene):
+        kinds, n = np.unique(scene.spring_kind, return_counts=True)
+        return dict(zip(kinds.tolist(), n.tolist(), strict=True))
+
+    nx = ny = 10
+    assert counts(scenes["cloth"]) == {"structural": 2 * nx * (ny - 1), "shear": 2 * (nx - 1) * (ny - 1),
+                                       "bend": 2 * nx * (ny - 2)}
+    n = 4
+    face = 3 * 2 * (n - 1) ** 2 * n
+    body = 4 * (n - 1) ** 3
+    assert counts(scenes["jelly_cube"]) == {"structural": 3 * n * n * (n - 1), "shear": face + body}
+    assert counts(scenes["cube_no_shear"]) == {"structural": 3 * n * n * (n - 1)}
+    assert counts(scenes["chain"]) == {"structural": 9}
+    # topology_pair: two 6x3 beams; the right one adds 2*(5*2) shear diagonals
+    structural = 2 * (5 * 3 + 6 * 2)
+    assert counts(scenes["topology_pair"]) == {"structural": structural, "shear": 2 * 5 * 2}
+
+
+def test_loaded_values_match_the_file(scenes):
+    cloth = scenes["cloth"]
+    assert cloth.system.mass.sum() == pytest.approx(1.0)
+    # top_corners: the two pinned particles are the corners of the top row (largest y, extreme x)
+    x = cloth.state0.x
+    pinned = np.flatnonzero(cloth.system.pinned)
+    assert len(pinned) == 2
+    assert np.allclose(x[pinned, 1], x[:, 1].max())
+    assert sorted(x[pinned, 0]) == [x[:, 0].min(), x[:, 0].max()]
+    g = [e for e in cloth.system.effects if e.name == "gravity"][0]
+    assert np.allclose(g.force(x, x) / cloth.system.mass[:, None], [0.0, 0.0, -9.81])
+    # rest lengths default to the initial lengths
+    springs = cloth.springs()
+    assert np.allclose(springs.lengths(x), springs.rest_length)
+    ratio = scenes["mass_ratio"].system.mass
+    assert ratio[1] / ratio[2] == pytest.approx(1e4)
+    v = scenes["chain"].state0.v
+    assert np.all(v[0] == 0.0) and np.allclose(v[1:], [0.0, 2.0])
+
+
+def test_overrides():
+    scene = mslab.load_scene("chain", dt=0.002, t_end=0.1, method="symplectic-euler", save_every=5)
+    assert (scene.settings.dt, scene.settings.t_end, scene.settings.save_every) == (0.002, 0.1, 5)
+    assert scene.settings.method == "symplectic_euler"
+    with pytest.raises(SceneError, match="run.dt"):
+        mslab.load_scene("chain", dt=-1.0)
+    with pytest.raises(SceneError, match="whole number of steps"):
+        mslab.load_scene("chain", dt=0.003)
+    with pytest.raises(SceneError, match="valid methods"):
+        mslab.load_scene("chain", method="rk5")
+    with pytest.raises(SceneError, match="unknown override"):
+        mslab.load_scene("chain", gravity=3.0)
+
+
+BASE = """\
+[scene]
+dim = 2
+
+[particles]
+positions = [[0.0, 0.0], [1.0, 0.0]]
+mass = 1.0
+pinned = [0]
+
+[springs.structural]
+pairs = [[0, 1]]
+stiffness = 100.0
+
+[run]
+method = "rk4"
+dt = 0.01
+t_end = 1.0
+"""
+
+#: (replace this, with that) -> the key the error must name, a word of the reason
+BAD = {
+    "syntax": (("dim = 2", "dim = = 2"), "line 2", "TOML syntax"),
+    "unknown_section": (("[run]", "[gravty]\ng = 9.81\n[run]"), "gravty", "did you mean 'gravity'"),
+    "unknown_key": (("stiffness = 100.0", "stifness = 100.0"), "springs.structural.stifness",
+                    "did you mean 'stiffness'"),
+    "unknown_kind": (("[springs.structural]", "[springs.structual]"), "springs.structual", "structural"),
+    "wrong_type": (("stiffness = 100.0", 'stiffness = "100"'), "springs.structural.stiffness", "number"),
+    "non_finite": (("stiffness = 100.0", "stiffness = inf"), "springs.structural.stiffness", "finite"),
+    "nan_position": (("[1.0, 0.0]]", "[nan, 0.0]]"), "particles.positions[1][0]", "finite"),
+    "mass_zero": (("mass = 1.0", "mass = 0.0"), "particles.mass", "> 0"),
+    "mass_negative_in_list": (("mass = 1.0", "mass = [1.0, -2.0]"), "particles.mass[1]", "> 0"),
+    "stiffness_negative": (("stiffness = 100.0", "stiffness = -5.0"), "springs.structural.stiffness", ">= 0"),
+    "spring_index": (("pairs = [[0, 1]]", "pairs = [[0, 2]]"), "springs.structural.pairs[0]", "out of range"),
+    "pinned_index": (("pinned = [0]", "pinned = [5]"), "particles.pinned[0]", "out of range"),
+    "zero_length": (("[1.0, 0.0]]", "[0.0, 0.0]]"), "springs.structural.rest_length", "zero length"),
+    "dt_zero": (("dt = 0.01", "dt = 0.0"), "run.dt", "> 0"),
+    "t_end_negative": (("t_end = 1.0", "t_end = -1.0"), "run.t_end", "> 0"),
+    "unknown_method": (('method = "rk4"', 'method = "rk5"'), "run.method", "valid methods"),
+    "vector_length": (("[1.0, 0.0]]", "[1.0, 0.0, 0.0]]"), "particles.positions[1]", "2 numbers"),
+    "generator": (("positions = [[0.0, 0.0], [1.0, 0.0]]", 'generator = "chian"'), "particles.generator",
+                  "did you mean 'chain'"),
+}
+
+
+def bad_file(tmp_path, case: str):
+    (old, new), key, reason = BAD[case]
+    assert old in BASE
+    path = tmp_path / f"{case}.toml"
+    path.write_text(BASE.replace(old, new, 1))
+    return path, key, reason
+
+
+def test_base_scene_is_valid(tmp_path):
+    path = tmp_path / "base.toml"
+    path.write_text(BASE)
+    scene = mslab.load_scene(path)
+    assert scene.effects == ["springs"] and scene.n_particles == 2
+    assert scene.name == "base"
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_input_names_file_and_key(tmp_path, case):
+    path, key, reason = bad_file(tmp_path, case)
+    with pytest.raises(SceneError) as info:
+        mslab.load_scene(path)
+    err = info.value
+    assert err.key == key
+    assert reason in err.reason
+    assert str(err).startswith(f"{path}: {key}: ")
+    assert "\n" not in str(err)
+
+
+def test_syntax_error_line_number(tmp_path):
+    path = tmp_path / "s.toml"
+    path.write_text(BASE + "\n[gravity]\ng = [0.0, -9.81\n")
+    with pytest.raises(SceneError) as info:
+        mslab.load_scene(path)
+    assert info.value.key == f"line {BASE.count(chr(10)) + 3}"
+
+
+def test_missing_scene_suggests_name():
+    with pytest.raises(SceneError, match="did you mean 'cloth'"):
+        mslab.load_scene("clth")
