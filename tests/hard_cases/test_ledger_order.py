@@ -1,0 +1,41 @@
+"""Damped scenes: the energy ledger K + U + D is conserved to the method's order (fitted slope)."""
+
+import numpy as np
+import pytest
+
+import mslab
+from mslab.scenes.generators import chain, oscillator
+
+
+def _slope(scene, method, dts, t_end):
+    errors = []
+    for dt in dts:
+        tr = mslab.simulate(scene, method, dt=dt, t_end=t_end, save_every=10)
+        errors.append(float(np.max(np.abs(tr.energy.total - tr.energy.total[0]))))
+    return np.polyfit(np.log(dts), np.log(errors), 1)[0], errors
+
+
+@pytest.mark.parametrize("method", [m for m in mslab.methods() if m != "implicit_midpoint"])
+def test_damped_oscillator_ledger_order(method):
+    scene = oscillator(stiffness=4.0, gamma=0.4, displacement=0.3)
+    slope, errors = _slope(scene, method, [0.02, 0.01, 0.005], 2.0)
+    order = mslab.get_method(method).order
+    assert slope > order - 0.15, (slope, errors)  # at least the method's order (Heun: 3 on a linear problem)
+    assert slope < order + 1.15
+
+
+def test_implicit_midpoint_keeps_the_ledger_of_a_linear_oscillator_exactly():
+    """A quadratic invariant: implicit midpoint books K + U + D to roundoff at any dt."""
+    scene = oscillator(stiffness=4.0, gamma=0.4, displacement=0.3)
+    tr = mslab.simulate(scene, "implicit_midpoint", dt=0.05, t_end=2.0)
+    assert np.max(np.abs(tr.energy.total - tr.energy.total[0])) < 1e-13
+
+
+@pytest.mark.parametrize("method", ["symplectic_euler", "symplectic_euler_x", "heun", "midpoint", "rk3",
+                                    "rk4", "verlet", "leapfrog", "velocity_verlet", "implicit_euler_fp"])
+def test_damped_chain_ledger_order(method):
+    """Nonlinear chain with spring damping and air drag."""
+    scene = chain(5, stiffness=200.0, gamma=0.2, damping=0.5)
+    slope, errors = _slope(scene, method, [0.004, 0.002, 0.001], 1.0)
+    order = mslab.get_method(method).order
+    assert abs(slope - order) < 0.5, (slope, errors)
