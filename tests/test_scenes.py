@@ -13,6 +13,7 @@ import mslab
 from mslab.effects import Damping, Gravity, Plane, Sphere
 from mslab.errors import ConvergenceError, InstabilityError, SceneError
 from mslab.scenes.loader import scene_path
+from tests.scene_cases import BAD, BASE, bad_file
 
 ISSUE_SCENES = ("pendulum", "chain", "hanging_rope", "stiff_chain", "mass_ratio", "cloth", "cloth_on_sphere",
                 "jelly_cube", "cube_no_shear", "topology_pair")
@@ -153,58 +154,6 @@ def test_overrides():
         mslab.load_scene("chain", method="rk5")
     with pytest.raises(SceneError, match="unknown override"):
         mslab.load_scene("chain", gravity=3.0)
-
-
-BASE = """\
-[scene]
-dim = 2
-
-[particles]
-positions = [[0.0, 0.0], [1.0, 0.0]]
-mass = 1.0
-pinned = [0]
-
-[springs.structural]
-pairs = [[0, 1]]
-stiffness = 100.0
-
-[run]
-method = "rk4"
-dt = 0.01
-t_end = 1.0
-"""
-
-#: (replace this, with that) -> the key the error must name, a word of the reason
-BAD = {
-    "syntax": (("dim = 2", "dim = = 2"), "line 2", "TOML syntax"),
-    "unknown_section": (("[run]", "[gravty]\ng = 9.81\n[run]"), "gravty", "did you mean 'gravity'"),
-    "unknown_key": (("stiffness = 100.0", "stifness = 100.0"), "springs.structural.stifness",
-                    "did you mean 'stiffness'"),
-    "unknown_kind": (("[springs.structural]", "[springs.structual]"), "springs.structual", "structural"),
-    "wrong_type": (("stiffness = 100.0", 'stiffness = "100"'), "springs.structural.stiffness", "number"),
-    "non_finite": (("stiffness = 100.0", "stiffness = inf"), "springs.structural.stiffness", "finite"),
-    "nan_position": (("[1.0, 0.0]]", "[nan, 0.0]]"), "particles.positions[1][0]", "finite"),
-    "mass_zero": (("mass = 1.0", "mass = 0.0"), "particles.mass", "> 0"),
-    "mass_negative_in_list": (("mass = 1.0", "mass = [1.0, -2.0]"), "particles.mass[1]", "> 0"),
-    "stiffness_negative": (("stiffness = 100.0", "stiffness = -5.0"), "springs.structural.stiffness", ">= 0"),
-    "spring_index": (("pairs = [[0, 1]]", "pairs = [[0, 2]]"), "springs.structural.pairs[0]", "out of range"),
-    "pinned_index": (("pinned = [0]", "pinned = [5]"), "particles.pinned[0]", "out of range"),
-    "zero_length": (("[1.0, 0.0]]", "[0.0, 0.0]]"), "springs.structural.rest_length", "zero length"),
-    "dt_zero": (("dt = 0.01", "dt = 0.0"), "run.dt", "> 0"),
-    "t_end_negative": (("t_end = 1.0", "t_end = -1.0"), "run.t_end", "> 0"),
-    "unknown_method": (('method = "rk4"', 'method = "rk5"'), "run.method", "valid methods"),
-    "vector_length": (("[1.0, 0.0]]", "[1.0, 0.0, 0.0]]"), "particles.positions[1]", "2 numbers"),
-    "generator": (("positions = [[0.0, 0.0], [1.0, 0.0]]", 'generator = "chian"'), "particles.generator",
-                  "did you mean 'chain'"),
-}
-
-
-def bad_file(tmp_path, case: str):
-    (old, new), key, reason = BAD[case]
-    assert old in BASE
-    path = tmp_path / f"{case}.toml"
-    path.write_text(BASE.replace(old, new, 1))
-    return path, key, reason
 
 
 def test_base_scene_is_valid(tmp_path):

@@ -215,19 +215,20 @@ def run(args) -> int:
     # -- predicted stable step (mslab.stability.max_stable_dt) ------------------------------------------
     predicted = predicted_dt(scene, method)
     if predicted is not None and not args.json:
-        limit = "no limit (A-stable)" if predicted == np.inf else f"{predicted:.4g} s"
-        verdict = (
-            ""
-            if predicted == np.inf
-            else (" (dt is above it)" if scene.settings.dt > predicted else " (dt is below it)")
-        )
+        if predicted == np.inf:
+            limit, verdict = "no limit (A-stable)", ""
+        elif predicted == 0:
+            limit, verdict = "none: unstable at every dt on this scene (undamped oscillations grow)", ""
+        else:
+            above = scene.settings.dt > predicted
+            limit, verdict = f"{predicted:.4g} s", " (dt is above it)" if above else " (dt is below it)"
         say(args, f"predicted stable dt for {method}: {limit}{verdict}")
     # ----------------------------------------------------------------------------------------------------
 
     if not args.json:
         say(args, f"running {method} on {scene.name} ...")
         sys.stdout.flush()
-    code = 0
+    code, failure = 0, ""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", StabilityWarning)
         try:
@@ -238,7 +239,8 @@ def run(args) -> int:
             if err.trajectory is None:
                 raise
             traj, code = err.trajectory, EXIT_UNSTABLE
-            notes.append(str(err).splitlines()[0])
+            failure = str(err).splitlines()[0]
+            notes.append(failure)
     for w in caught:
         if issubclass(w.category, StabilityWarning):
             notes.append(str(w.message))
@@ -248,7 +250,7 @@ def run(args) -> int:
     if args.json:
         emit_json(doc)
     if code == EXIT_UNSTABLE:
-        print(f"mslab: error: {notes[-1]}", file=sys.stderr)
+        print(f"mslab: error: {failure}", file=sys.stderr)
     elif code == EXIT_INTERRUPTED:
         saved = f"; saved {len(traj.t)} samples to {files['data']}" if files else " (nothing saved: no --out)"
         t_last = traj.t[-1] if len(traj.t) else 0.0
