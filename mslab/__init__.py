@@ -13,9 +13,12 @@ from mslab.system import System
 
 __version__ = "0.1.0"
 
+from mslab import stability  # noqa: E402  (mslab.stability.* as DESIGN.md spells it)
+
 __all__ = [
     "COURSE_METHODS", "ConvergenceError", "Energy", "ExplicitRK", "InstabilityError", "Integrator",
     "MslabError", "Scene", "SceneBuilder", "SceneError", "Settings", "SimulationInterrupted",
     "StabilityWarning", "State", "Stats", "System", "Trajectory", "get_method", "load_scene", "methods",
     "scene_names", "simulate",
+    "stability",
 ]

@@ -55,9 +55,9 @@ S_MAX = 1e6
 _GRID = np.geomspace(S_MIN, S_MAX, 1201)
 
 __all__ = ["TOL", "amplification", "amplification_matrix", "amplification_sympy", "contraction_dt",
-           "eigenvalues", "imag_limit", "linearise", "max_stable_dt", "measured_amplification_matrix",
-           "oscillator_limit", "predicted_stable_dt", "real_interval", "region_grid", "spectral_radius",
-           "summary", "tableau"]
+           "describe_step_limit", "eigenvalues", "imag_limit", "linearise", "max_stable_dt",
+           "measured_amplification_matrix", "oscillator_limit", "predicted_stable_dt", "real_interval",
+           "region_grid", "same_spectrum", "spectral_radius", "summary", "tableau"]
 
 
 # -- tableaux and R(z) ----------------------------------------------------------------------------
@@ -572,3 +572,19 @@ def predicted_stable_dt(scene: Scene, method: str | Integrator, max_dofs: int = 
         return float(max_stable_dt(scene, method))
     except (ValueError, np.linalg.LinAlgError, spla.ArpackError, spla.ArpackNoConvergence):
         return None
+
+
+def describe_step_limit(scene: Scene, method: str | Integrator, dt: float) -> str:
+    """One line for the run command: the predicted stable dt and the margin of ``dt``.
+
+    E.g. ``"predicted stable dt = 0.02828 (rk4); dt = 0.01 is 0.354 x the limit"``.
+    """
+    m = get_method(method)
+    limit = max_stable_dt(scene, m)
+    if np.isinf(limit):
+        return f"predicted stable dt: no limit ({m.name} is A-stable)"
+    if limit == 0:
+        return f"predicted stable dt: none ({m.name} is unstable at every dt on this scene)"
+    verdict = "within" if dt <= limit else "ABOVE"
+    return (f"predicted stable dt = {limit:.4g} ({m.name}); "
+            f"dt = {dt:g} is {dt / limit:.3g} x the limit ({verdict})")

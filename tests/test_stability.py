@@ -234,3 +234,45 @@ def test_no_check_for_implicit_methods():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         mslab.simulate(scene, "implicit_euler", dt=0.1)
+
+
+# -- command line and plots ---------------------------------------------------------------------
+
+def test_cli_stability_json_and_figure(tmp_path, capsys):
+    import json
+
+    from mslab.cli import main
+
+    assert main(["stability", "rk4", "verlet", "implicit-euler", "--json", "--out", str(tmp_path)]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    rows = {r["method"]: r for r in doc["methods"]}
+    assert set(rows) == {"rk4", "verlet", "implicit_euler"}
+    assert rows["rk4"]["imag_limit"] == pytest.approx(2 * math.sqrt(2), abs=1e-8)
+    assert rows["verlet"]["oscillator_limit"] == pytest.approx(2.0, abs=1e-8)
+    assert rows["implicit_euler"]["real_interval"] is None  # -inf is not JSON: null
+    assert (tmp_path / "stability_regions.png").stat().st_size > 10_000
+    assert json.loads((tmp_path / "stability.json").read_text())["methods"][0]["method"] == "rk4"
+
+
+def test_cli_stability_table_all_and_bad_method(capsys):
+    from mslab.cli import main
+
+    assert main(["stability"]) == 0
+    out = capsys.readouterr().out
+    for name in mslab.methods():
+        assert name in out
+    assert main(["stability", "rk5"]) == 2
+    assert "unknown method 'rk5'" in capsys.readouterr().err
+
+
+def test_plots_draw_on_the_given_axes():
+    import matplotlib.pyplot as plt
+
+    from mslab.plots import plot_oscillator_stability, plot_stability_regions
+
+    fig, (a, b) = plt.subplots(1, 2)
+    assert plot_stability_regions(["euler", "rk4"], ax=a, n=61) is a
+    assert plot_oscillator_stability(["euler", "verlet"], ax=b, n=50) is b
+    assert "lambda" in a.get_xlabel() and "omega" in b.get_xlabel()
+    assert len(b.lines) == 3  # two methods and the line rho = 1
+    plt.close(fig)
