@@ -149,8 +149,11 @@ def _blown_up(x, v, limit):
 
 @njit(cache=True)
 def _save(x, v, dissipated, xs, vs, ds, k):
-    xs[k] = x
-    vs[k] = v
+    n, dim = x.shape
+    for p in range(n):
+        for c in range(dim):
+            xs[k, p, c] = x[p, c]
+            vs[k, p, c] = v[p, c]
     ds[k] = dissipated
 
 
@@ -175,8 +178,10 @@ def run_explicit_rk(x, v, dissipated, A, b, dt, step, n_steps, saved, k, xs, vs,
     while step < n_steps:
         step += 1
         for st in range(s):
-            xi[:, :] = x
-            vi[:, :] = v
+            for p in range(n):
+                for c in range(dim):
+                    xi[p, c] = x[p, c]
+                    vi[p, c] = v[p, c]
             for r in range(st):
                 if A[st, r] != 0.0:
                     h = dt * A[st, r]
@@ -186,7 +191,9 @@ def run_explicit_rk(x, v, dissipated, A, b, dt, step, n_steps, saved, k, xs, vs,
                             vi[p, c] = vi[p, c] + h * kv[r, p, c]
             power[st] = rhs(xi, vi, inv_mass, i, j, stiffness, rest_length, damping, damped,
                             f_gravity, gamma, kv[st])
-            kx[st] = vi
+            for p in range(n):
+                for c in range(dim):
+                    kx[st, p, c] = vi[p, c]
         work = 0.0
         for st in range(s):
             if b[st] != 0.0:
@@ -219,10 +226,19 @@ def run_symplectic(method, x, v, dissipated, mem_x, mem_a, mem_p, dt, step, n_st
                    inv_mass, i, j, stiffness, rest_length, damping, damped, f_gravity, gamma):
     """Steps of the symplectic methods of ``mslab/integrators/symplectic.py`` (seed eqs. 7-10, 21-26).
 
-    ``method``: SYMPLECTIC_EULER (``v += h a(x, v); x += h v``), SYMPLECTIC_EULER_X
-    (``x += h v; v += h a(x, v)``), VERLET (``x_{n+1} = 2 x_n - x_{n-1} + h^2 a_n``, memory
-    ``mem_x = x_{n-1}``, ``mem_p = [P_{n-1}]``), LEAPFROG (``mem_x = v_{n+1/2}``,
-    ``mem_a = a_n``, ``mem_p = [P_n]``), VELOCITY_VERLET (``mem_a = a_n``, ``mem_p = [P_n]``).
+    Each step has one force evaluation ``a = a(X, V)``; the methods differ in the point
+    ``(X, V)`` and in the update:
+
+    * SYMPLECTIC_EULER: ``(X, V) = (x_n, v_n)``; ``v += h a``, ``x += h v_{n+1}``;
+    * SYMPLECTIC_EULER_X: ``X = x_n + h v_n``, ``V = v_n``; ``x = X``, ``v += h a``;
+    * VERLET: ``(x_n, v_n)``; ``x_{n+1} = 2 x_n - x_{n-1} + h^2 a``,
+      ``v_{n+1} = (x_{n+1} - x_n)/h + h/2 a`` (memory ``mem_x = x_{n-1}``, ``mem_p = [P_{n-1}]``);
+    * LEAPFROG: ``X = x_n + h v_{n+1/2}``, ``V = v_{n+1/2} (+ h/2 a_n if forces depend on v)``;
+      ``v_{n+1} = v_{n+1/2} + h/2 a``, ``v_{n+3/2} = v_{n+1/2} + h a`` (``mem_x = v_{n+1/2}``,
+      ``mem_a = a_n``, ``mem_p = [P_n]``);
+    * VELOCITY_VERLET: ``X = x_n + h v_n + h^2/2 a_n``, ``V = v_n + h a_n``;
+      ``v_{n+1} = v_n + h/2 (a_n + a)`` (``mem_a = a_n``, ``mem_p = [P_n]``).
+
     Memory arrays are updated in place. Returns as :func:`run_explicit_rk`.
     """
     n, dim = x.shape
@@ -231,62 +247,55 @@ def run_symplectic(method, x, v, dissipated, mem_x, mem_a, mem_p, dt, step, n_st
     vg = np.empty((n, dim))
     while step < n_steps:
         step += 1
-        if method == SYMPLECTIC_EULER:
-            p = rhs(x, v, inv_mass, i, j, stiffness, rest_length, damping, damped, f_gravity, gamma, a)
-            for q in range(n):
-                for c in range(dim):
+        # the point (X, V) where the forces are evaluated
+        for q in range(n):
+            for c in range(dim):
+                if method == SYMPLECTIC_EULER or method == VERLET:
+                    xg[q, c] = x[q, c]
+                    vg[q, c] = v[q, c]
+                elif method == SYMPLECTIC_EULER_X:
+                    xg[q, c] = x[q, c] + dt * v[q, c]
+                    vg[q, c] = v[q, c]
+                elif method == LEAPFROG:
+                    xg[q, c] = x[q, c] + dt * mem_x[q, c]
+                    if velocity_dependent:
+                        vg[q, c] = mem_x[q, c] + (0.5 * dt) * mem_a[q, c]
+                    else:
+                        vg[q, c] = mem_x[q, c]
+                else:  # VELOCITY_VERLET
+                    xg[q, c] = x[q, c] + dt * v[q, c] + (0.5 * dt * dt) * mem_a[q, c]
+                    vg[q, c] = v[q, c] + dt * mem_a[q, c]
+        p = rhs(xg, vg, inv_mass, i, j, stiffness, rest_length, damping, damped, f_gravity, gamma, a)
+        # the update
+        for q in range(n):
+            for c in range(dim):
+                if method == SYMPLECTIC_EULER:
                     v[q, c] = v[q, c] + dt * a[q, c]
                     x[q, c] = x[q, c] + dt * v[q, c]
-            dissipated = dissipated + dt * p
-        elif method == SYMPLECTIC_EULER_X:
-            for q in range(n):
-                for c in range(dim):
-                    x[q, c] = x[q, c] + dt * v[q, c]
-            p = rhs(x, v, inv_mass, i, j, stiffness, rest_length, damping, damped, f_gravity, gamma, a)
-            for q in range(n):
-                for c in range(dim):
+                elif method == SYMPLECTIC_EULER_X:
+                    x[q, c] = xg[q, c]
                     v[q, c] = v[q, c] + dt * a[q, c]
-            dissipated = dissipated + dt * p
-        elif method == VERLET:
-            p = rhs(x, v, inv_mass, i, j, stiffness, rest_length, damping, damped, f_gravity, gamma, a)
-            for q in range(n):
-                for c in range(dim):
+                elif method == VERLET:
                     x_new = 2.0 * x[q, c] - mem_x[q, c] + (dt * dt) * a[q, c]
                     v[q, c] = (x_new - x[q, c]) / dt + (0.5 * dt) * a[q, c]
                     mem_x[q, c] = x[q, c]
                     x[q, c] = x_new
-            dissipated = dissipated + 0.5 * dt * (3.0 * p - mem_p[0])
-            mem_p[0] = p
-        elif method == LEAPFROG:
-            v_half = mem_x
-            for q in range(n):
-                for c in range(dim):
-                    x[q, c] = x[q, c] + dt * v_half[q, c]
-                    if velocity_dependent:
-                        vg[q, c] = v_half[q, c] + (0.5 * dt) * mem_a[q, c]
-                    else:
-                        vg[q, c] = v_half[q, c]
-            p = rhs(x, vg, inv_mass, i, j, stiffness, rest_length, damping, damped, f_gravity, gamma, a)
-            for q in range(n):
-                for c in range(dim):
-                    v[q, c] = v_half[q, c] + (0.5 * dt) * a[q, c]
-                    v_half[q, c] = v_half[q, c] + dt * a[q, c]
+                elif method == LEAPFROG:
+                    x[q, c] = xg[q, c]
+                    v[q, c] = mem_x[q, c] + (0.5 * dt) * a[q, c]
+                    mem_x[q, c] = mem_x[q, c] + dt * a[q, c]
                     mem_a[q, c] = a[q, c]
-            dissipated = dissipated + 0.5 * dt * (mem_p[0] + p)
-            mem_p[0] = p
-        else:  # VELOCITY_VERLET
-            for q in range(n):
-                for c in range(dim):
-                    xg[q, c] = x[q, c] + dt * v[q, c] + (0.5 * dt * dt) * mem_a[q, c]
-                    vg[q, c] = v[q, c] + dt * mem_a[q, c]
-            p = rhs(xg, vg, inv_mass, i, j, stiffness, rest_length, damping, damped, f_gravity, gamma, a)
-            for q in range(n):
-                for c in range(dim):
+                else:  # VELOCITY_VERLET
                     x[q, c] = xg[q, c]
                     v[q, c] = v[q, c] + (0.5 * dt) * (mem_a[q, c] + a[q, c])
                     mem_a[q, c] = a[q, c]
+        if method == SYMPLECTIC_EULER or method == SYMPLECTIC_EULER_X:
+            dissipated = dissipated + dt * p
+        elif method == VERLET:
+            dissipated = dissipated + 0.5 * dt * (3.0 * p - mem_p[0])
+        else:
             dissipated = dissipated + 0.5 * dt * (mem_p[0] + p)
-            mem_p[0] = p
+        mem_p[0] = p
         if k < saved.shape[0] and saved[k] == step:
             _save(x, v, dissipated, xs, vs, ds, k)
             k += 1
