@@ -237,3 +237,20 @@ def test_cli_rejects_a_dt_that_does_not_divide_t_end(capsys):
     assert main(["precision", "oscillator", "--dts", "0.3", "--t-end", "1", "--no-timing"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("mslab: error:") and "--dts" in err and len(err.strip().splitlines()) == 1
+
+
+def test_cli_compare_default_run_is_ten_scene_runs_in_whole_steps(capsys):
+    # the oscillator's own t_end = 2 pi is no whole number of its dt = 0.01 steps
+    assert main(["compare", "oscillator", "--methods", "leapfrog", "--dt", "0.05", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    steps = doc["methods"][0]["steps"]
+    assert steps == round(20 * np.pi / 0.05) and doc["t_end"] == pytest.approx(steps * 0.05)
+
+
+def test_cli_compare_on_the_built_in_chain(capsys):
+    assert main(["compare", "chain", "--methods", "euler", "symplectic_euler", "--dt", "0.002",
+                 "--t-end", "4", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["scene"] == "chain"
+    verdicts = {r["method"]: r["verdict"] for r in doc["methods"]}
+    assert verdicts == {"euler": "drifting", "symplectic_euler": "bounded"}

@@ -41,7 +41,10 @@ def run(args) -> int:
 
     scene = resolve_scene(args.scene)
     dt = float(args.dt if args.dt is not None else scene.settings.dt)
-    t_end = float(args.t_end if args.t_end is not None else LONG_RUN * scene.settings.t_end)
+    if args.t_end is not None:
+        t_end = float(args.t_end)
+    else:  # ten times the scene's run, rounded to a whole number of steps
+        t_end = dt * max(1, round(LONG_RUN * scene.settings.t_end / dt))
     try:
         step_count(t_end, dt)
     except ValueError as err:
