@@ -455,7 +455,7 @@ def linearise(scene: Scene, x: np.ndarray | None = None, v: np.ndarray | None = 
 
 
 def eigenvalues(scene: Scene, contacts: str = "possible", n_modes: int = 24,
-                dense_limit: int = 600) -> np.ndarray:
+                dense_limit: int = 600, state: State | None = None) -> np.ndarray:
     """Eigenvalues ``lam`` of the linearised first-order system at ``scene.state0``.
 
     Without velocity-dependent forces: ``lam = +- i w`` from the largest eigenvalue
@@ -466,11 +466,14 @@ def eigenvalues(scene: Scene, contacts: str = "possible", n_modes: int = 24,
     modes are the physics, not the method) and ``Im lam >= 0`` (one of each conjugate
     pair) are returned: the stiff end of the spectrum limits explicit steps.
 
+    ``state`` (default ``scene.state0``) is where the system is linearised.
+
     Returns
     -------
     ndarray of complex, shape (n,)
     """
-    K, D, inv_mass = linearise(scene, contacts=contacts)
+    state = scene.state0 if state is None else state
+    K, D, inv_mass = linearise(scene, state.x, state.v, contacts=contacts)
     n = inv_mass.size
     if n == 0:
         return np.zeros(0, dtype=complex)
@@ -515,16 +518,19 @@ def _dt_limit(m: Integrator, lam: np.ndarray) -> float:
 _CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def _cached_eigenvalues(scene: Scene, contacts: str) -> np.ndarray:
+def _cached_eigenvalues(scene: Scene, contacts: str, state: State | None = None) -> np.ndarray:
+    state = scene.state0 if state is None else state
     per_system = _CACHE.setdefault(scene.system, {})
-    key = (contacts, scene.state0.x.tobytes(), scene.state0.v.tobytes())
+    key = (contacts, state.x.tobytes(), state.v.tobytes())
     if key not in per_system:
-        per_system.clear()
-        per_system[key] = eigenvalues(scene, contacts=contacts)
+        if len(per_system) > 8:
+            per_system.clear()
+        per_system[key] = eigenvalues(scene, contacts=contacts, state=state)
     return per_system[key]
 
 
-def max_stable_dt(scene: Scene, method: str | Integrator, contacts: str = "possible") -> float:
+def max_stable_dt(scene: Scene, method: str | Integrator, contacts: str = "possible",
+                  state: State | None = None) -> float:
     """Largest stable dt of a method on a scene, linearised at ``scene.state0``.
 
     Undamped scenes: ``oscillator_limit(method) / w_max``. Damped scenes: the largest
@@ -539,6 +545,9 @@ def max_stable_dt(scene: Scene, method: str | Integrator, contacts: str = "possi
     method : str or Integrator
     contacts : {"possible", "active"}
         See :func:`linearise`: colliders limit the step wherever particles may touch them.
+    state : State, optional
+        Linearise here instead of at ``scene.state0`` (e.g. a stretched, loaded state
+        taken from a trajectory).
 
     Returns
     -------
@@ -547,15 +556,14 @@ def max_stable_dt(scene: Scene, method: str | Integrator, contacts: str = "possi
         the system's counters.
     """
     m = get_method(method)
-    lam = _cached_eigenvalues(scene, contacts)
     if isinstance(m, ImplicitEulerFixedPoint):
-        return contraction_dt(scene, contacts)
-    return _dt_limit(m, lam)
+        return contraction_dt(scene, contacts, state)
+    return _dt_limit(m, _cached_eigenvalues(scene, contacts, state))
 
 
-def contraction_dt(scene: Scene, contacts: str = "possible") -> float:
+def contraction_dt(scene: Scene, contacts: str = "possible", state: State | None = None) -> float:
     """Step below which the fixed-point iteration of implicit Euler contracts: ``1 / max|lam|``."""
-    lam = _cached_eigenvalues(scene, contacts)
+    lam = _cached_eigenvalues(scene, contacts, state)
     top = float(np.max(np.abs(lam))) if lam.size else 0.0
     return np.inf if top == 0 else 1.0 / top
 

@@ -276,3 +276,20 @@ def test_plots_draw_on_the_given_axes():
     assert "lambda" in a.get_xlabel() and "omega" in b.get_xlabel()
     assert len(b.lines) == 3  # two methods and the line rho = 1
     plt.close(fig)
+
+
+def test_max_stable_dt_at_another_state():
+    """A compressed zero-tension state vs a stretched one: the tension adds transverse stiffness."""
+    b = mslab.SceneBuilder(2)
+    a = b.add_particle([0.0, 0.0], pinned=True)
+    p = b.add_particle([1.0, 0.0], mass=1.0)
+    b.add_spring(a, p, stiffness=100.0, rest_length=0.5)  # stretched to twice its rest length
+    scene = b.build()
+    # axial k = 100, transverse k (1 - L/l) = 50: w_max = 10
+    assert st.max_stable_dt(scene, "verlet") == pytest.approx(0.2, rel=1e-9)
+    x = scene.state0.x.copy()
+    x[1] = [0.0, 0.75]  # now along y, stretched to 1.5 rest lengths
+    other = mslab.State(x, scene.state0.v)
+    assert st.max_stable_dt(scene, "verlet", state=other) == pytest.approx(0.2, rel=1e-9)
+    K, _, _ = st.linearise(scene, other.x, other.v)
+    np.testing.assert_allclose(np.sort(np.linalg.eigvalsh(-K.toarray())), [100 / 3, 100.0])
