@@ -515,6 +515,7 @@ def _dt_limit(m: Integrator, lam: np.ndarray) -> float:
     return _ray_limit(rho) / top
 
 
+#: per System: eigenvalues and limits by (contacts, state bytes[, method]); scenes are not mutated
 _CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
@@ -523,7 +524,7 @@ def _cached_eigenvalues(scene: Scene, contacts: str, state: State | None = None)
     per_system = _CACHE.setdefault(scene.system, {})
     key = (contacts, state.x.tobytes(), state.v.tobytes())
     if key not in per_system:
-        if len(per_system) > 8:
+        if len(per_system) > 64:
             per_system.clear()
         per_system[key] = eigenvalues(scene, contacts=contacts, state=state)
     return per_system[key]
@@ -558,7 +559,13 @@ def max_stable_dt(scene: Scene, method: str | Integrator, contacts: str = "possi
     m = get_method(method)
     if isinstance(m, ImplicitEulerFixedPoint):
         return contraction_dt(scene, contacts, state)
-    return _dt_limit(m, _cached_eigenvalues(scene, contacts, state))
+    lam = _cached_eigenvalues(scene, contacts, state)
+    per_system = _CACHE[scene.system]
+    state = scene.state0 if state is None else state
+    key = (contacts, state.x.tobytes(), state.v.tobytes(), m)
+    if key not in per_system:
+        per_system[key] = _dt_limit(m, lam)
+    return per_system[key]
 
 
 def contraction_dt(scene: Scene, contacts: str = "possible", state: State | None = None) -> float:
