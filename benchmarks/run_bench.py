@@ -1,0 +1,83 @@
+"""Run the full ``mslab bench`` suite and write ``benchmarks/RESULTS.md`` and ``results.json``.
+
+Usage::
+
+    .venv/bin/python benchmarks/run_bench.py            # full run (a few minutes)
+    .venv/bin/python benchmarks/run_bench.py --quick    # the quick variant of ``mslab bench``
+
+The measurements live in :mod:`mslab.fast.benchmarks` (the references they compare with in
+:mod:`mslab.fast.references`), so ``mslab bench`` and this script measure the same thing.
+Nothing here is a test: timings depend on the machine and its load.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from mslab.commands.common import to_jsonable
+from mslab.fast import benchmarks
+
+HERE = Path(__file__).resolve().parent
+
+
+def cold_compile_seconds() -> tuple[float, float]:
+    """Seconds of a first rk4 run in a fresh process: empty numba cache (compile), then cached."""
+    import subprocess
+    import tempfile
+
+    code = ("import time; import mslab; sc = mslab.scenes.chain(5, dim=3); t = time.perf_counter(); "
+            "mslab.simulate(sc, 'rk4', dt=1e-3, t_end=0.01, check_stability=False); "
+            "print(time.perf_counter() - t)")
+    with tempfile.TemporaryDirectory() as cache:
+        env = {**__import__("os").environ, "NUMBA_CACHE_DIR": cache}
+        cold = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+        warm = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    return float(cold.stdout.strip() or "nan"), float(warm.stdout.strip() or "nan")
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true")
+    args = parser.parse_args()
+    doc = benchmarks.run_all(quick=args.quick, progress=lambda name: print(f"  {name} ...", file=sys.stderr))
+    doc["compile_seconds"], doc["cached_load_seconds"] = cold_compile_seconds()
+    (HERE / "results.json").write_text(json.dumps(to_jsonable(doc), indent=2) + "\n")
+    m = doc["machine"]
+    text = [
+        "# mslab benchmark results",
+        "",
+        f"Measured {m['date']} by `benchmarks/run_bench.py{' --quick' if args.quick else ''}` "
+        f"(the same code as `mslab bench`).",
+        "",
+        f"Machine: {m['cpu']}, {m['cores']} cores (shared, other jobs running), Python {m['python']}, "
+        f"numpy {m['numpy']}, scipy {m['scipy']}, numba {m['numba']}.",
+        "",
+        "Every time is the median of repeats after a warm-up call (compile time excluded); every",
+        "ratio compares two timings of this one run. References are written in the benchmark",
+        "(`mslab/fast/references.py`): a hand-written numba RK4 loop and a single-thread compiled",
+        "spring-force kernel; scipy's `solve_ivp` gets a compiled right-hand side (its best case).",
+        "",
+        benchmarks.table(doc),
+        "",
+        f"Compile time of the fast path at first use (empty numba cache, first rk4 run): "
+        f"{doc['compile_seconds']:.1f} s; loading the cached code in a new process: "
+        f"{doc['cached_load_seconds']:.2f} s.",
+        "",
+        "Slope of the spring-force cost (log-log fit from 1e3 to 1e6 springs):",
+        "",
+        "| springs | time per evaluation (s) |",
+        "|---|---|",
+    ]
+    f = doc["cloth_forces"]
+    text += [f"| {n} | {t:.3g} |" for n, t in zip(f["slope_sizes"], f["slope_times"], strict=True)]
+    text += ["", f"Fitted slope: {f['slope']:.3f}.", ""]
+    (HERE / "RESULTS.md").write_text("\n".join(text) + "\n")
+    print("\n".join(text))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
