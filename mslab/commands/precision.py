@@ -162,7 +162,8 @@ def run(args) -> int:
         return 0
     rows = [[r["method"], fmt(r["dt"]), fmt(r["rtol"], ".0e"), r["steps"], r["n_force"], r["n_jac"],
              r["n_solve"], fmt(r["error"], ".2e"), fmt(r["error_rms"], ".2e"),
-             fmt(r["wall_time"], ".3g") if r["ok"] else "blew up"] for r in records]
+             ("-" if args.no_timing else fmt(r["wall_time"], ".3g")) if r["ok"] else "failed"]
+            for r in records]
     say(args, f"{scene.name}: t_end = {t_end:g}, reference = {doc['reference']}")
     header = ["method", "dt", "rtol", "steps", "n_force", "n_jac", "n_solve", "error", "error_rms",
               "wall_time [s]"]
@@ -171,8 +172,13 @@ def run(args) -> int:
              if r["solver"] == "mslab"}   # slope between the two smallest dts
     say(args, "orders: fitted over errors below a tenth of the solution's size; local = between the two "
               "smallest dts")
-    say(args, table([[m, fmt(orders[m], ".2f"), fmt(local[m], ".2f"), expected[m]] for m in methods],
+    def order(p):
+        return "-" if p is None or not math.isfinite(p) else f"{p:.2f}"
+
+    say(args, table([[m, order(orders[m]), order(local[m]), expected[m]] for m in methods],
                     ["method", "fitted", "local", "expected"]))
+    if any(not math.isfinite(orders[m]) for m in methods):
+        say(args, "  (-: fewer than two errors in the asymptotic range; try smaller --dts)")
     for f in figures:
         say(args, f"wrote {f}")
     return 0
