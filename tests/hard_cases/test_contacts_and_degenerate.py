@@ -5,7 +5,8 @@ import pytest
 
 import mslab
 from mslab import stability as st
-from tests.hard_cases.scenes import chain_onto_plane, nearly_coincident, zero_rest_length
+
+from .scenes import chain_onto_plane, nearly_coincident, zero_rest_length
 
 
 def _steps(dt, t_end=1.0):

@@ -5,7 +5,8 @@ import pytest
 
 import mslab
 from mslab import stability as st
-from tests.hard_cases.scenes import mass_ratio_chain, stiff_chain
+
+from .scenes import mass_ratio_chain, stiff_chain
 
 EXPLICIT = ["rk4", "symplectic_euler", "symplectic_euler_x", "verlet", "leapfrog", "velocity_verlet"]
 
