@@ -15,6 +15,16 @@ __version__ = "0.1.0"
 
 from mslab import stability  # noqa: E402  (mslab.stability.* as DESIGN.md spells it)
 
+
+def __getattr__(name: str):
+    """``mslab.derive`` on first use (it imports sympy, which plain runs never need)."""
+    if name == "derive":
+        import importlib
+
+        return importlib.import_module("mslab.derive")
+    raise AttributeError(f"module 'mslab' has no attribute {name!r}")
+
+
 __all__ = [
     "COURSE_METHODS", "ConvergenceError", "Energy", "ExplicitRK", "InstabilityError", "Integrator",
     "MslabError", "Scene", "SceneBuilder", "SceneError", "Settings", "SimulationInterrupted",

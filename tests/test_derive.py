@@ -120,3 +120,8 @@ def test_leading_term_predicts_one_numerical_step(name):
         predicted = np.array([float(c.subs(subs).subs(h, dt)) for c in lead.leading])
         scale = np.max(np.abs(predicted))
         assert np.allclose(err, predicted, rtol=0, atol=20 * dt * scale)
+
+
+def test_reachable_as_mslab_derive():
+    assert mslab.derive.order("heun") == 2
+    assert mslab.derive is derive
