@@ -126,7 +126,7 @@ def test_interrupted_run_saves_whole_file_or_nothing(tmp_path):
     if npz.exists():
         data = np.load(npz)
         assert not bool(data["complete"])
-        assert 0 < data["t"][-1] < 2000 and data["x"].shape == (len(data["t"]), 20, 2)
+        assert 0 <= data["t"][-1] < 2000 and data["x"].shape == (len(data["t"]), 20, 2)
         assert "saved" in err
 
 
