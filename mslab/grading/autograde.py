@@ -1,8 +1,9 @@
 """The grader: every exercise of every submission, in parallel, scored from trusted results.
 
-For each (submission, exercise) pair the grader starts one test runner
-(:mod:`mslab.grading.runner`) with a fresh random nonce, the instructor's tests (read from
-the *source* tree once, never from the submission) and the student's single source file.
+The (submission, exercise) pairs are dealt to a few test runners
+(:mod:`mslab.grading.runner`), each started with a fresh random nonce, the instructor's
+tests (read from the *source* tree once, never from the submission) and the students'
+single source files.
 The runner runs the tests in its own process and the student's code in a sandbox
 (:mod:`mslab.grading.sandbox`); only the runner's nonce-tagged line counts. Points and
 the list of tests come from the grader's own reading of the test files, so a runner that
@@ -14,6 +15,7 @@ from __future__ import annotations
 import json
 import os
 import secrets
+import selectors
 import signal
 import subprocess
 import sys
@@ -22,6 +24,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from mslab.grading.layout import Exercise, expand_submissions, find_exercises, read_student_file
+from mslab.grading.remote import set_not_dumpable
 
 #: seconds a runner may need beyond its tests' time limits (interpreter, pytest, imports)
 RUNNER_SLACK = 60.0
@@ -86,6 +89,14 @@ def _run_runner(job: dict, wall_limit: float) -> tuple[dict | None, str]:
                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
                             start_new_session=True, env=env, cwd=os.path.abspath(os.sep))
     try:
+        # wait for "ready": the runner is non-dumpable before the nonce reaches its stdin
+        sel = selectors.DefaultSelector()
+        sel.register(proc.stdout, selectors.EVENT_READ)
+        ready = sel.select(timeout=RUNNER_SLACK)
+        sel.close()
+        if not ready or proc.stdout.readline() != b"ready\n":
+            _killpg(proc)
+            return None, "the test runner did not start"
         out, _ = proc.communicate(json.dumps(job).encode(), timeout=wall_limit)
     except subprocess.TimeoutExpired:
         _killpg(proc)
@@ -109,33 +120,40 @@ def _killpg(proc: subprocess.Popen) -> None:
     proc.wait()
 
 
-def grade_exercise(submission: Path, exercise: Exercise, timeout: float = 10.0,
-                   memory_mb: int = 1024) -> ExerciseResult:
-    """Grade one exercise of one submission (runs the tests in a runner subprocess)."""
-    source, why = read_student_file(submission, exercise)
-    result = ExerciseResult(exercise.name)
-    outcome: dict = {}
-    if source is None:
-        reason_all = why
-    else:
-        job = {"nonce": secrets.token_hex(16), "module": exercise.module, "student_source": source,
-               "tests": exercise.tests, "timeout": timeout, "memory_mb": memory_mb,
-               "cpu_s": int(timeout * len(exercise.points) + 30)}
-        wall = timeout * (len(exercise.points) + 1) + RUNNER_SLACK
-        report, why = _run_runner(job, wall)
-        reason_all = why
-        if report is not None:
-            outcome = report.get("results", {}) if isinstance(report.get("results"), dict) else {}
-            result.errors = [str(e)[:300] for e in report.get("errors", [])][:10]
-            reason_all = result.errors[0] if result.errors else "not run"
+def _score(exercise: Exercise, outcome: dict, errors: list[str], reason_all: str) -> ExerciseResult:
+    """Points of one exercise from the runner's outcomes; the test list is the grader's own."""
+    result = ExerciseResult(exercise.name, errors=errors)
     for test, max_points in exercise.points.items():
         entry = outcome.get(test) if isinstance(outcome.get(test), dict) else None
-        passed = bool(entry and entry.get("passed") is True and not result.errors)
-        reason = "ok" if passed else str(entry.get("reason", "failed"))[:200] if entry else reason_all
+        passed = bool(entry and entry.get("passed") is True and not errors)
+        if passed:
+            reason = "ok"
+        elif entry and not errors:
+            reason = str(entry.get("reason", "failed"))[:200]
+        else:
+            reason = errors[0] if errors else reason_all
         result.tests.append(TestResult(test, max_points if passed else 0.0, max_points, passed, reason))
-    if source is None:
-        result.errors = [why]
     return result
+
+
+def _run_items(items: list[dict], timeout: float, memory_mb: int) -> dict:
+    """Run items in one runner; ``{key: outcome}``, or ``{key: None}`` with why, if it failed."""
+    job = {"nonce": secrets.token_hex(16), "timeout": timeout, "memory_mb": memory_mb,
+           "import_timeout": max(30.0, timeout), "items": items}
+    wall = sum(timeout * (it["n_tests"] + 1) + max(30.0, timeout) for it in items) + RUNNER_SLACK
+    report, why = _run_runner(job, wall)
+    done = report.get("items") if isinstance(report, dict) and isinstance(report.get("items"), dict) else {}
+    return {it["key"]: (done.get(it["key"]), why or "not graded") for it in items}
+
+
+def _run_chunk(items: list[dict], timeout: float, memory_mb: int) -> dict:
+    """Run a chunk; if its runner failed (a student may have killed it), every item alone."""
+    out = _run_items(items, timeout, memory_mb)
+    if len(items) > 1 and any(not isinstance(entry, dict) for entry, _ in out.values()):
+        for it in items:
+            if not isinstance(out[it["key"]][0], dict):
+                out.update(_run_items([it], timeout, memory_mb))
+    return out
 
 
 def grade(paths, source: str | Path = "exercises", jobs: int | None = None, timeout: float = 10.0,
@@ -149,12 +167,14 @@ def grade(paths, source: str | Path = "exercises", jobs: int | None = None, time
     source : path
         The instructor's tree: the tests and the list of exercises come from here.
     jobs : int
-        Runners in parallel (default: number of cores).
+        Runners in parallel (default: number of cores). The (submission, exercise) items
+        are dealt to ``jobs`` runners; each grades its items in turn.
     timeout : float
         Seconds per test (the student's calls of one test together).
     only : list of str, optional
         Grade only these exercise folders.
     """
+    set_not_dumpable()  # no process of ours may read the nonces from our memory
     exercises = find_exercises(source)
     if only:
         unknown = set(only) - {e.name for e in exercises}
@@ -162,13 +182,36 @@ def grade(paths, source: str | Path = "exercises", jobs: int | None = None, time
             raise ValueError(f"unknown exercise(s): {', '.join(sorted(unknown))}")
         exercises = [e for e in exercises if e.name in only]
     submissions = expand_submissions(paths, exercises)
-    pairs = [(s, e) for s in submissions for e in exercises]
-    with ThreadPoolExecutor(max_workers=max(1, jobs or os.cpu_count() or 1)) as pool:
-        done = list(pool.map(lambda p: grade_exercise(p[0], p[1], timeout, memory_mb), pairs))
+    jobs = max(1, jobs or os.cpu_count() or 1)
+    sources, items = {}, []
+    for k, sub in enumerate(submissions):
+        for ex in exercises:
+            text, why = read_student_file(sub, ex)
+            sources[(k, ex.name)] = why
+            if text is not None:
+                items.append({"key": f"{k}:{ex.name}", "name": ex.name, "module": ex.module,
+                              "student_source": text, "tests": ex.tests, "n_tests": len(ex.points),
+                              "cpu_s": int(timeout * len(ex.points) + 60)})
+    chunks = [items[j::jobs] for j in range(jobs) if items[j::jobs]]
+    outcomes: dict = {}
+    with ThreadPoolExecutor(max_workers=jobs) as pool:
+        for part in pool.map(lambda chunk: _run_chunk(chunk, timeout, memory_mb), chunks):
+            outcomes.update(part)
     results = []
     for k, sub in enumerate(submissions):
         res = SubmissionResult(str(sub), sub.resolve().name)
-        res.exercises = done[k * len(exercises):(k + 1) * len(exercises)]
+        for ex in exercises:
+            missing = sources[(k, ex.name)]
+            if missing:
+                res.exercises.append(_score(ex, {}, [missing], missing))
+                continue
+            entry, why = outcomes[f"{k}:{ex.name}"]
+            if not isinstance(entry, dict):
+                res.exercises.append(_score(ex, {}, [why], why))
+                continue
+            outcome = entry.get("results") if isinstance(entry.get("results"), dict) else {}
+            errors = [str(e)[:300] for e in entry.get("errors", [])][:10]
+            res.exercises.append(_score(ex, outcome, errors, "not run"))
         results.append(res)
     return results
 

@@ -80,7 +80,7 @@ class Problem:
             K[si, sj] -= block
             K[sj, si] -= block
         minv = np.repeat(self.inv_mass, dim)
-        D = -self.gamma * np.diag(minv * np.repeat(self.mass, dim))
+        D = -self.gamma * np.diag(minv)
         return minv[:, None] * K, D
 
     def system(self):

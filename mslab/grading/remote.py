@@ -9,6 +9,7 @@ the sandbox (its whole process group); the next test starts a fresh one.
 
 from __future__ import annotations
 
+import ctypes
 import os
 import resource
 import selectors
@@ -21,6 +22,7 @@ from pathlib import Path
 from mslab.grading.wire import WireError, dumps, loads
 
 SANDBOX = Path(__file__).with_name("sandbox.py")
+PR_SET_DUMPABLE, PR_CAPBSET_DROP, PR_SET_NO_NEW_PRIVS = 4, 24, 38
 #: largest single reply accepted from the sandbox (bytes)
 MAX_REPLY = 32 * 1024 * 1024
 
@@ -37,8 +39,36 @@ class StudentError(Exception):
         self.mro = tuple(mro)
 
 
+def drop_privileges() -> None:
+    """No new privileges, and no capabilities even for root (Linux; elsewhere a no-op).
+
+    A capability-less process can open ``/proc/PID/fd`` or ``mem`` of another process of
+    the same user only if that one is dumpable; the runner and the grader are not.
+    """
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+    except OSError:
+        return
+    prctl = getattr(libc, "prctl", None)
+    if prctl is None:
+        return
+    prctl(PR_SET_NO_NEW_PRIVS, 1, 0, 0, 0)
+    if os.geteuid() == 0:
+        for cap in range(64):  # empty bounding set: exec gives root no capabilities
+            prctl(PR_CAPBSET_DROP, cap, 0, 0, 0)
+
+
+def set_not_dumpable() -> None:
+    """``prctl(PR_SET_DUMPABLE, 0)``: other processes of this user cannot read our /proc entries."""
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_DUMPABLE, 0, 0, 0, 0)
+    except (OSError, AttributeError):
+        pass
+
+
 def _limits(memory_mb: int, cpu_s: int, file_mb: int):
     def apply():  # runs in the child between fork and exec
+        drop_privileges()
         mem = memory_mb * 1024 * 1024
         resource.setrlimit(resource.RLIMIT_AS, (mem, mem))
         resource.setrlimit(resource.RLIMIT_CPU, (cpu_s, cpu_s + 1))
@@ -52,8 +82,9 @@ class Sandbox:
     """One sandbox process running the student's module file ``module_file`` in ``workdir``."""
 
     def __init__(self, module_file: Path, workdir: Path, memory_mb: int = 1024, cpu_s: int = 60,
-                 file_mb: int = 1):
+                 file_mb: int = 1, import_timeout: float = 30.0):
         self.module_file = Path(module_file)
+        self.import_timeout = float(import_timeout)
         self.workdir = Path(workdir)
         self.memory_mb, self.cpu_s, self.file_mb = memory_mb, cpu_s, file_mb
         self.proc: subprocess.Popen | None = None
@@ -67,6 +98,13 @@ class Sandbox:
                    PYTHONDONTWRITEBYTECODE="1", PYTHONHASHSEED="0", HOME=str(self.workdir),
                    TMPDIR=str(self.workdir), MPLBACKEND="Agg")
         return env
+
+    def ensure_started(self) -> None:
+        """Start the sandbox if it is not running (importing the module has its own time limit)."""
+        if self.broken:
+            raise StudentError(self.broken)
+        if self.proc is None or self.proc.poll() is not None:
+            self.start(time.monotonic() + self.import_timeout)
 
     def start(self, deadline: float) -> None:
         self.proc = subprocess.Popen(
@@ -121,10 +159,7 @@ class Sandbox:
         return msg
 
     def request(self, msg: dict, deadline: float) -> dict:
-        if self.broken:
-            raise StudentError(self.broken)
-        if self.proc is None or self.proc.poll() is not None:
-            self.start(deadline)
+        self.ensure_started()
         try:
             self.proc.stdin.write(dumps(msg))
             self.proc.stdin.flush()
@@ -167,11 +202,23 @@ def _exit_reason(code: int | None) -> str:
 
 
 class Student:
-    """The student's module as the instructor's tests see it while grading."""
+    """The student's module as the instructor's tests see it while grading.
 
-    def __init__(self, sandbox: Sandbox, deadline: float):
+    The test's time limit ``timeout`` covers all its calls together; it starts once the
+    sandbox is up (importing the module has a limit of its own).
+    """
+
+    def __init__(self, sandbox: Sandbox, timeout: float):
         object.__setattr__(self, "_sandbox", sandbox)
-        object.__setattr__(self, "_deadline", deadline)
+        object.__setattr__(self, "_timeout", float(timeout))
+        object.__setattr__(self, "_end", None)
+
+    @property
+    def _deadline(self) -> float:
+        if self._end is None:
+            self._sandbox.ensure_started()
+            object.__setattr__(self, "_end", time.monotonic() + self._timeout)
+        return self._end
 
     def __getattr__(self, name: str):
         if name.startswith("__"):

@@ -1,12 +1,15 @@
 """The test runner: runs the instructor's tests for one exercise of one submission.
 
 Started by the grader as ``python -E -s -P -m mslab.grading.runner`` with a JSON job on
-stdin (a random nonce, the test sources, the student's file, limits). It is *trusted*:
+stdin: a random nonce, limits, and a list of items, each one exercise of one submission
+(the instructor's test sources and the student's file). One runner grades many items in
+turn, so the interpreter, pytest and mslab are imported once. It is *trusted*:
 student code never runs in this process. It
 
 1. makes itself non-dumpable (``prctl(PR_SET_DUMPABLE, 0)``), so processes of the same
-   user cannot open its ``/proc/PID/fd`` or memory, keeps a private copy of stdout for
-   the result and points its standard streams at ``/dev/null``;
+   user without capabilities (the sandbox) cannot open its ``/proc/PID/fd`` or memory,
+   says ``ready`` (only then does the grader send the job), keeps a private copy of stdout
+   for the result and points its standard streams at ``/dev/null``;
 2. writes the tests into a fresh temporary folder and the student's file into another one;
 3. runs pytest in-process on the tests (no conftest, no plugin autoload, importlib
    import mode) with :class:`GradingPlugin`, whose ``student`` fixture forwards every call
@@ -17,27 +20,16 @@ student code never runs in this process. It
 
 from __future__ import annotations
 
-import ctypes
 import json
 import os
 import shutil
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import pytest
 
-from mslab.grading.remote import Sandbox, Student, StudentError
-
-PR_SET_DUMPABLE = 4
-
-
-def _not_dumpable() -> None:
-    try:
-        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_DUMPABLE, 0, 0, 0, 0)
-    except (OSError, AttributeError):  # not Linux: no /proc to protect
-        pass
+from mslab.grading.remote import Sandbox, Student, StudentError, set_not_dumpable
 
 
 def short_reason(excinfo) -> str:
@@ -68,7 +60,7 @@ class GradingPlugin:
     def student(self):
         if self.missing:
             raise StudentError(self.missing)
-        return Student(self.sandbox, time.monotonic() + self.timeout)
+        return Student(self.sandbox, self.timeout)
 
     def pytest_collectreport(self, report):
         if report.failed:
@@ -98,32 +90,35 @@ class GradingPlugin:
         return rep
 
 
-def run_job(job: dict) -> dict:
+def run_exercise(job: dict, ex: dict) -> dict:
     """Run the tests of one exercise on one student's file; the outcome as a dict."""
     root = Path(tempfile.mkdtemp(prefix="mslab-runner-"))
     tests_dir, work_dir = root / "tests", root / "work"
     tests_dir.mkdir()
     work_dir.mkdir()
     try:
-        for name, text in job["tests"].items():
+        for name, text in ex["tests"].items():
             (tests_dir / name).write_text(text)
+            os.chmod(tests_dir / name, 0o444)
         ini = tests_dir / "pytest.ini"
         ini.write_text("[pytest]\nmarkers =\n    points(n): points a test is worth\n")
+        os.chmod(tests_dir, 0o555)
         sandbox, missing = None, None
-        if job.get("student_source") is None:
-            missing = f"{job['module']} is missing from the submission"
+        if ex.get("student_source") is None:
+            missing = f"{ex['module']} is missing from the submission"
         else:
-            module_file = work_dir / job["module"]
-            module_file.write_text(job["student_source"])
+            module_file = work_dir / ex["module"]
+            module_file.write_text(ex["student_source"])
             sandbox = Sandbox(module_file, work_dir, memory_mb=int(job.get("memory_mb", 1024)),
-                              cpu_s=int(job.get("cpu_s", 120)))
+                              cpu_s=int(ex.get("cpu_s", 120)),
+                              import_timeout=float(job.get("import_timeout", 30.0)))
         plugin = GradingPlugin(sandbox, float(job.get("timeout", 10.0)), missing)
 
         def unchanged() -> bool:
             files = {p.name for p in tests_dir.iterdir()} - {"__pycache__"}
-            if files != set(job["tests"]) | {"pytest.ini"}:
+            if files != set(ex["tests"]) | {"pytest.ini"}:
                 return False
-            return all((tests_dir / n).read_text() == t for n, t in job["tests"].items())
+            return all((tests_dir / n).read_text() == t for n, t in ex["tests"].items())
 
         plugin.tamper_check = unchanged
         args = [str(tests_dir), "-q", "-c", str(ini), "--rootdir", str(tests_dir), "--noconftest",
@@ -134,15 +129,37 @@ def run_job(job: dict) -> dict:
         finally:
             if sandbox is not None:
                 sandbox.kill()
+            # importlib mode caches test modules by name: forget them for the next exercise
+            for key, module in list(sys.modules.items()):
+                if str(getattr(module, "__file__", None) or "").startswith(str(tests_dir)):
+                    del sys.modules[key]
         return {"results": plugin.results, "errors": plugin.collect_errors}
     finally:
+        for folder in (tests_dir, root):
+            try:
+                os.chmod(folder, 0o755)
+            except OSError:
+                pass
         shutil.rmtree(root, ignore_errors=True)
 
 
+def run_job(job: dict) -> dict:
+    """Every item (one exercise of one submission) of the job in turn: ``{"items": {key: outcome}}``."""
+    out = {}
+    for item in job["items"]:
+        try:
+            out[item["key"]] = run_exercise(job, item)
+        except Exception as err:  # noqa: BLE001 - this item fails, the next one still runs
+            out[item["key"]] = {"results": {}, "errors": [f"runner failed: {type(err).__name__}: {err}"]}
+    return {"items": out}
+
+
 def main() -> None:
-    _not_dumpable()
+    set_not_dumpable()
     sys.dont_write_bytecode = True
     out = os.fdopen(os.dup(1), "w")
+    out.write("ready\n")  # only now may the grader send the job (and its nonce)
+    out.flush()
     job = json.loads(sys.stdin.read())
     devnull = os.open(os.devnull, os.O_RDWR)
     for fd in (0, 1, 2):
@@ -150,7 +167,7 @@ def main() -> None:
     try:
         result = run_job(job)
     except Exception as err:  # noqa: BLE001 - reported to the grader, which fails the exercise
-        result = {"results": {}, "errors": [f"runner failed: {type(err).__name__}: {err}"]}
+        result = {"items": {}, "errors": [f"runner failed: {type(err).__name__}: {err}"]}
     out.write(job["nonce"] + " " + json.dumps(result) + "\n")
     out.flush()
 

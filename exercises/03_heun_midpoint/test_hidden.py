@@ -1,0 +1,47 @@
+"""Hidden tests of exercise 03 (graded, not released)."""
+
+import numpy as np
+import pytest
+
+from mslab.grading.checks import check_array, fitted_order, reference_run
+from mslab.grading.problems import problem
+from mslab.scenes.generators import oscillator_solution
+
+MODULE = "heun_midpoint"
+
+
+def global_error(step, dt, t_end=2.0):
+    prob = problem("oscillator", stiffness=4.0, displacement=0.3)
+    x, v = prob.x0, prob.v0
+    for _ in range(round(t_end / dt)):
+        x, v = step(x, v, prob, dt)
+    u, _ = oscillator_solution(t_end, 0.3, 2.0, 0.0)
+    return abs(float(x[1, 0]) - 1.0 - float(u))
+
+
+@pytest.mark.points(2)
+def test_heun_is_second_order(student):
+    dts = [0.1, 0.05, 0.025]
+    order = fitted_order(dts, [global_error(student.heun_step, dt) for dt in dts])
+    assert 1.8 < order < 2.3, f"observed order {order:.2f}, expected 2"
+
+
+@pytest.mark.points(2)
+def test_midpoint_is_second_order(student):
+    dts = [0.1, 0.05, 0.025]
+    order = fitted_order(dts, [global_error(student.midpoint_step, dt) for dt in dts])
+    assert 1.8 < order < 2.3, f"observed order {order:.2f}, expected 2"
+
+
+@pytest.mark.points(2)
+def test_both_in_3d_with_velocities(student):
+    prob = problem("chain", n=4, dim=3, stiffness=40.0, gamma=1.0, sag=0.1)
+    rng = np.random.default_rng(7)
+    v0 = rng.normal(size=prob.x0.shape) * (~prob.pinned)[:, None]
+    for name in ("heun", "midpoint"):
+        ref = reference_run(name, prob, prob.x0, v0, 0.02, steps=3)
+        x, v = prob.x0, v0
+        for _ in range(3):
+            x, v = getattr(student, f"{name}_step")(x, v, prob, 0.02)
+        check_array(x, ref.x, rtol=1e-9, atol=1e-12, what=f"{name}: x after 3 steps")
+        check_array(v, ref.v, rtol=1e-9, atol=1e-12, what=f"{name}: v after 3 steps")

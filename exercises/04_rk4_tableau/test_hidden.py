@@ -1,0 +1,49 @@
+"""Hidden tests of exercise 04 (graded, not released)."""
+
+import numpy as np
+import pytest
+
+from mslab.grading.checks import check_array, fitted_order, reference_run
+from mslab.grading.problems import problem
+from mslab.integrators import ExplicitRK, get_method
+from mslab.scenes.generators import oscillator_solution
+from mslab.state import State
+
+MODULE = "rk_tableau"
+
+
+@pytest.mark.points(2)
+def test_rk4_through_the_stepper_is_fourth_order(student):
+    A, b = get_method("rk4").A, get_method("rk4").b
+    prob = problem("oscillator", stiffness=4.0, displacement=0.3)
+    u_exact, _ = oscillator_solution(2.0, 0.3, 2.0, 0.0)
+    dts, errors = [0.2, 0.1, 0.05], []
+    for dt in dts:
+        x, v = prob.x0, prob.v0
+        for _ in range(round(2.0 / dt)):
+            x, v = student.rk_step(x, v, prob, dt, A, b)
+        errors.append(abs(float(x[1, 0]) - 1.0 - float(u_exact)))
+    order = fitted_order(dts, errors)
+    assert 3.7 < order < 4.4, f"observed order {order:.2f}, expected 4"
+
+
+@pytest.mark.points(2)
+def test_any_five_stage_tableau(student):
+    rng = np.random.default_rng(4)
+    A = np.tril(rng.uniform(-1, 1, (5, 5)), k=-1)
+    b = rng.uniform(0, 1, 5)
+    prob = problem("chain", n=4, dim=3, stiffness=25.0, gamma=0.4, sag=0.2)
+    system = prob.system()
+    ref = ExplicitRK(A, b).step(system, State(prob.x0, prob.v0), 0.03)
+    x, v = student.rk_step(prob.x0, prob.v0, prob, 0.03, A, b)
+    check_array(x, ref.x, rtol=1e-9, atol=1e-12, what="x_new")
+    check_array(v, ref.v, rtol=1e-9, atol=1e-12, what="v_new")
+
+
+@pytest.mark.points(1)
+def test_student_rk4_tableau_drives_the_library(student):
+    A, b, c = student.rk4_tableau()
+    prob = problem("chain", n=3, dim=2, stiffness=30.0, sag=0.3)
+    ref = reference_run("rk4", prob, prob.x0, prob.v0, 0.05)
+    mine = ExplicitRK(A, b, c).step(prob.system(), State(prob.x0, prob.v0), 0.05)
+    check_array(mine.x, ref.x, what="x_new from your tableau")

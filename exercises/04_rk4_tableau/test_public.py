@@ -1,0 +1,45 @@
+"""Public tests of exercise 04 (run them: ``pytest exercises/04_rk4_tableau``)."""
+
+import numpy as np
+import pytest
+
+from mslab.grading.checks import check_array, check_shape, reference_run
+from mslab.grading.problems import problem
+from mslab.integrators import get_method
+
+MODULE = "rk_tableau"
+
+
+@pytest.mark.points(2)
+def test_rk4_tableau_reproduces_the_stages_of_the_course(student):
+    out = student.rk4_tableau()
+    assert isinstance(out, tuple | list) and len(out) == 3, "return (A, b, c)"
+    A, b, c = out
+    check_shape(A, (4, 4), what="A")
+    # seed eqs. 17-20: each stage starts from y_n plus h/2, h/2, h times the previous slope
+    expected = np.zeros((4, 4))
+    expected[1, 0], expected[2, 1], expected[3, 2] = 0.5, 0.5, 1.0
+    check_array(A, expected, what="A")
+    check_array(b, np.array([1, 2, 2, 1]) / 6, what="b")
+    check_array(c, np.array([0.0, 0.5, 0.5, 1.0]), what="c")
+
+
+@pytest.mark.points(3)
+def test_rk_step_with_rk4_matches_the_library(student):
+    prob = problem("chain", n=5, dim=2, stiffness=60.0, gamma=0.2, sag=0.3)
+    rk4 = get_method("rk4")
+    ref = reference_run("rk4", prob, prob.x0, prob.v0, 0.01)
+    x, v = student.rk_step(prob.x0, prob.v0, prob, 0.01, rk4.A, rk4.b)
+    check_array(x, ref.x, what="x_new")
+    check_array(v, ref.v, what="v_new")
+
+
+@pytest.mark.points(2)
+def test_rk_step_with_euler_and_heun_tableaux(student):
+    prob = problem("chain", n=3, dim=2, stiffness=30.0, sag=0.3)
+    for name in ("euler", "heun"):
+        method = get_method(name)
+        ref = reference_run(name, prob, prob.x0, prob.v0, 0.02)
+        x, v = student.rk_step(prob.x0, prob.v0, prob, 0.02, method.A, method.b)
+        check_array(x, ref.x, what=f"{name}: x_new")
+        check_array(v, ref.v, what=f"{name}: v_new")

@@ -1,0 +1,59 @@
+"""Hidden tests of exercise 05 (graded, not released)."""
+
+import numpy as np
+import pytest
+
+from mslab.grading.checks import check_array, fitted_order
+from mslab.grading.problems import problem
+from mslab.scenes.generators import oscillator_solution
+
+MODULE = "verlet_leapfrog"
+
+
+def verlet(student, prob, v0, dt, n):
+    x_prev, x = student.verlet_start(prob.x0, v0, prob, dt), prob.x0
+    for _ in range(n):
+        x, x_prev = student.verlet_step(x, x_prev, prob, dt), x
+    return x
+
+
+def leapfrog(student, prob, v0, dt, n):
+    x, vh = prob.x0, student.leapfrog_start(prob.x0, v0, prob, dt)
+    for _ in range(n):
+        x, vh = student.leapfrog_step(x, vh, prob, dt)
+    return x
+
+
+@pytest.mark.points(2)
+def test_verlet_and_leapfrog_give_the_same_positions(student):
+    # both start with x_1 = x_0 + h v_0 + h^2/2 a_0 and then take the same steps
+    prob = problem("chain", n=4, dim=3, stiffness=30.0, sag=0.3)
+    v0 = np.random.default_rng(8).normal(size=prob.x0.shape) * (~prob.pinned)[:, None]
+    xv = verlet(student, prob, v0, 0.02, 40)
+    xl = leapfrog(student, prob, v0, 0.02, 40)
+    check_array(xv, xl, rtol=1e-8, atol=1e-10, what="Verlet vs leapfrog after 40 steps")
+
+
+@pytest.mark.points(2)
+def test_verlet_is_second_order(student):
+    prob = problem("oscillator", stiffness=4.0, displacement=0.3)
+    u, _ = oscillator_solution(2.0, 0.3, 2.0, 0.0)
+    dts = [0.1, 0.05, 0.025]
+    ends = [verlet(student, prob, prob.v0, dt, round(2.0 / dt)) for dt in dts]
+    errors = [abs(float(x[1, 0]) - 1.0 - float(u)) for x in ends]
+    order = fitted_order(dts, errors)
+    assert 1.8 < order < 2.3, f"observed order {order:.2f}, expected 2"
+
+
+@pytest.mark.points(1)
+def test_leapfrog_stays_bounded_near_its_limit(student):
+    # h w = 1.9 < 2: stable, the amplitude stays bounded over many periods
+    prob = problem("oscillator", stiffness=1.0, displacement=0.2)
+    x = prob.x0
+    vh = student.leapfrog_start(prob.x0, prob.v0, prob, 1.9)
+    peak = 0.0
+    for _ in range(300):
+        x, vh = student.leapfrog_step(x, vh, prob, 1.9)
+        peak = max(peak, abs(float(x[1, 0]) - 1.0))
+    assert peak < 1.0, f"amplitude grew to {peak:.3g}"
+    assert peak > 0.15, f"amplitude shrank to {peak:.3g} (leapfrog does not damp)"

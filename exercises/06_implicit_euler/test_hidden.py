@@ -1,0 +1,47 @@
+"""Hidden tests of exercise 06 (graded, not released)."""
+
+import numpy as np
+import pytest
+
+from mslab.grading.checks import check_array, reference_run
+from mslab.grading.problems import problem
+
+MODULE = "implicit_euler"
+
+
+@pytest.mark.points(2)
+def test_newton_matches_the_library_with_drag(student):
+    prob = problem("chain", n=5, dim=3, stiffness=5e3, gamma=2.0, sag=0.3)
+    v0 = np.random.default_rng(9).normal(size=prob.x0.shape) * (~prob.pinned)[:, None]
+    ref = reference_run("implicit_euler", prob, prob.x0, v0, 0.02)
+    x, v, _ = student.implicit_euler_newton(prob.x0, v0, prob, 0.02)
+    check_array(x, ref.x, rtol=1e-8, atol=1e-9, what="x_new")
+    check_array(v, ref.v, rtol=1e-8, atol=1e-8, what="v_new")
+
+
+@pytest.mark.points(1)
+def test_newton_needs_few_iterations(student):
+    prob = problem("chain", n=6, dim=2, stiffness=1e4, sag=0.4)
+    _, _, n_iter = student.implicit_euler_newton(prob.x0, prob.v0, prob, 0.01)
+    assert isinstance(n_iter, int) and 1 <= n_iter <= 8, f"n_iter = {n_iter!r}: Newton should converge fast"
+
+
+@pytest.mark.points(2)
+def test_fixed_point_and_newton_agree(student):
+    prob = problem("chain", n=4, dim=2, stiffness=500.0, gamma=0.5, sag=0.2)
+    xf, vf, _ = student.implicit_euler_fixed_point(prob.x0, prob.v0, prob, 1e-3)
+    ref = reference_run("implicit_euler", prob, prob.x0, prob.v0, 1e-3)
+    check_array(xf, ref.x, rtol=1e-8, atol=1e-9, what="x_new")
+    check_array(vf, ref.v, rtol=1e-8, atol=1e-8, what="v_new")
+
+
+@pytest.mark.points(1)
+def test_newton_damps_a_stiff_oscillation(student):
+    # R(z) = 1/(1 - z): every step shrinks the energy, even at dt * w = 10
+    prob = problem("oscillator", stiffness=100.0, displacement=0.3)
+    x, v = prob.x0, prob.v0
+    amplitude = []
+    for _ in range(10):
+        x, v, _ = student.implicit_euler_newton(x, v, prob, 1.0)
+        amplitude.append(np.hypot(float(x[1, 0]) - 1.0, float(v[1, 0]) / 10.0))
+    assert np.all(np.diff(amplitude) < 0) and amplitude[-1] < 0.3 * 0.2, "the oscillation must decay"

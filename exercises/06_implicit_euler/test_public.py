@@ -1,0 +1,52 @@
+"""Public tests of exercise 06 (run them: ``pytest exercises/06_implicit_euler``)."""
+
+import numpy as np
+import pytest
+
+from mslab.grading.checks import check_array, check_raises, check_shape
+from mslab.grading.problems import problem
+
+MODULE = "implicit_euler"
+
+
+def stiff_chain():
+    # k = 1e4 on a chain of mass 1: w ~ sqrt(k/m) ~ 200, explicit methods need dt < 0.005
+    prob = problem("chain", n=6, dim=2, stiffness=1e4, sag=0.4)
+    v0 = np.random.default_rng(6).normal(size=prob.x0.shape) * (~prob.pinned)[:, None]
+    return prob, v0
+
+
+def triple(out, shape):
+    assert isinstance(out, tuple | list) and len(out) == 3, "return (x_new, v_new, n_iter)"
+    check_shape(out[0], shape, what="x_new")
+    check_shape(out[1], shape, what="v_new")
+    return out
+
+
+def check_solves_implicit_euler(prob, x, v, x_new, v_new, dt, tol):
+    # the defining equations of seed eq. 27, checked with the trusted acceleration
+    check_array(x_new - x - dt * v_new, np.zeros_like(x), atol=tol, what="x_new - x - dt v_new")
+    check_array(v_new - v - dt * prob(x_new, v_new), np.zeros_like(v), atol=tol,
+                what="v_new - v - dt a(x_new, v_new)")
+
+
+@pytest.mark.points(3)
+def test_newton_solves_a_stiff_step(student):
+    prob, v0 = stiff_chain()
+    x, v, _ = triple(student.implicit_euler_newton(prob.x0, v0, prob, 0.01), prob.x0.shape)
+    check_solves_implicit_euler(prob, prob.x0, v0, x, v, 0.01, 1e-8)
+
+
+@pytest.mark.points(2)
+def test_fixed_point_solves_a_small_step(student):
+    prob, v0 = stiff_chain()
+    x, v, n_iter = triple(student.implicit_euler_fixed_point(prob.x0, v0, prob, 2e-4), prob.x0.shape)
+    check_solves_implicit_euler(prob, prob.x0, v0, x, v, 2e-4, 1e-8)
+    assert isinstance(n_iter, int) and 1 <= n_iter <= 100, f"n_iter = {n_iter!r}"
+
+
+@pytest.mark.points(2)
+def test_fixed_point_refuses_a_large_step(student):
+    # dt * w ~ 2 >> 1: the fixed-point map is no contraction
+    prob, v0 = stiff_chain()
+    check_raises(RuntimeError, student.implicit_euler_fixed_point, prob.x0, v0, prob, 0.01)

@@ -1,0 +1,35 @@
+"""Public tests of exercise 07 (run them: ``pytest exercises/07_stability_function``)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from mslab.grading.checks import check_array, check_scalar
+from mslab.integrators import get_method
+
+MODULE = "stability_function"
+
+
+@pytest.mark.points(2)
+def test_forward_euler_is_one_plus_z(student):
+    # seed eq. 32: one Euler step multiplies y by (1 + h lam)
+    euler = get_method("euler")
+    z = np.array([-1.5 + 0.5j, 0.3j, -2.0, 0.25])
+    check_array(student.stability_function(euler.A, euler.b, z), 1.0 + z, what="R(z)")
+
+
+@pytest.mark.points(2)
+def test_rk4_is_the_taylor_polynomial(student):
+    rk4 = get_method("rk4")
+    re, im = np.meshgrid(np.linspace(-3, 1, 5), np.linspace(-3, 3, 4))
+    z = re + 1j * im
+    expected = sum(z**k / math.factorial(k) for k in range(5))
+    check_array(student.stability_function(rk4.A, rk4.b, z), expected, rtol=1e-12, atol=1e-12, what="R(z)")
+
+
+@pytest.mark.points(2)
+def test_euler_and_heun_intervals_end_at_minus_two(student):
+    for name in ("euler", "heun"):
+        m = get_method(name)
+        check_scalar(student.real_stability_interval(m.A, m.b), -2.0, rtol=1e-9, what=f"{name}: a")

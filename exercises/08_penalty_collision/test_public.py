@@ -1,0 +1,34 @@
+"""Public tests of exercise 08 (run them: ``pytest exercises/08_penalty_collision``)."""
+
+import numpy as np
+import pytest
+
+from mslab.effects.colliders import Plane
+from mslab.grading.checks import check_array, check_shape
+
+MODULE = "penalty_collision"
+
+NORMAL = np.array([0.0, 1.0])
+
+
+@pytest.mark.points(1)
+def test_depth_is_signed_distance_below_the_plane(student):
+    x = np.array([[0.0, -0.1], [2.0, 0.3], [1.0, 0.0]])
+    check_array(student.penetration_depth(x, NORMAL, 0.0), np.array([0.1, -0.3, 0.0]), what="depth")
+
+
+@pytest.mark.points(2)
+def test_frictionless_push_is_a_spring(student):
+    x = np.array([[0.0, -0.1], [2.0, 0.3]])
+    f = student.plane_contact_force(x, np.zeros_like(x), NORMAL, 0.0, 1000.0, 0.0, 1e-3)
+    check_array(f, np.array([[0.0, 100.0], [0.0, 0.0]]), what="force")
+
+
+@pytest.mark.points(3)
+def test_with_friction_matches_the_library(student):
+    rng = np.random.default_rng(14)
+    x, v = rng.normal(size=(8, 2)) * 0.2, rng.normal(size=(8, 2))
+    plane = Plane(NORMAL, 0.05, stiffness=2e3, friction=0.4, slip_velocity=1e-2)
+    f = student.plane_contact_force(x, v, NORMAL, 0.05, 2e3, 0.4, 1e-2)
+    check_shape(f, (8, 2), what="force")
+    check_array(f, plane.force(x, v), rtol=1e-10, atol=1e-10, what="force")
