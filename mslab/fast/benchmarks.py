@@ -1,8 +1,9 @@
 """The measurements of ``mslab bench``: mslab's speed as ratios to references timed in the same run.
 
 Every number is the median of repeats, after a warm-up call (compile time stays out), and
-every target compares two timings taken in this run on this machine, so the ratios hold
-on a loaded machine better than absolute times do. Four experiments (issue 5, item 3):
+every target compares two timings taken in this run on this machine, interleaved repeat by
+repeat (median of the per-repeat ratios), so the ratios hold on a loaded machine better
+than absolute times do. Four experiments (issue 5, item 3):
 
 ``chain``
     20-mass 3D chain, RK4, dt = 1e-3: time per step of ``mslab.simulate`` (compiled loop)
@@ -57,6 +58,30 @@ def median_time(fn: Callable[[], object], repeats: int = 5, min_time: float = 0.
     return statistics.median(times)
 
 
+def paired_times(fn_a: Callable[[], object], fn_b: Callable[[], object], repeats: int = 7,
+                 min_time: float = 0.05) -> tuple[float, float, float]:
+    """Interleaved timing of two functions: ``(median time a, median time b, median of a/b)``.
+
+    Each repeat times ``a`` then ``b`` back to back, so a burst of load from other jobs hits
+    both; the median of the per-repeat ratios is steadier than a ratio of two medians.
+    """
+    counts = []
+    for fn in (fn_a, fn_b):
+        fn()
+        start = time.perf_counter()
+        fn()
+        counts.append(max(1, int(min_time / max(time.perf_counter() - start, 1e-7))))
+    ta, tb = [], []
+    for _ in range(repeats):
+        for fn, number, out in ((fn_a, counts[0], ta), (fn_b, counts[1], tb)):
+            start = time.perf_counter()
+            for _ in range(number):
+                fn()
+            out.append((time.perf_counter() - start) / number)
+    ratio = statistics.median(a / b for a, b in zip(ta, tb, strict=True))
+    return statistics.median(ta), statistics.median(tb), ratio
+
+
 def machine() -> dict:
     """CPU model, core count, library versions and the date (UTC) of this run."""
     import numba
@@ -102,7 +127,7 @@ def bench_chain(quick: bool = False) -> dict:
     scene = chain_scene()
     dt = 1e-3
     n_steps = 2000 if quick else 10000
-    repeats = 5 if quick else 9
+    repeats = 7 if quick else 15
     model, g = _ref_args(scene.system)
     x0, v0 = scene.state0.x, scene.state0.v
 
@@ -118,13 +143,13 @@ def bench_chain(quick: bool = False) -> dict:
 
     # same answer first (the reference is the same method on the same forces)
     agree = float(np.max(np.abs(run_ref() - run_mslab("auto", n_steps).x[-1])))
-    t_ref = median_time(run_ref, repeats) / n_steps
-    t_fast = median_time(lambda: run_mslab("auto", n_steps), repeats) / n_steps
+    t_fast, t_ref, ratio = paired_times(lambda: run_mslab("auto", n_steps), run_ref, repeats)
+    t_fast, t_ref = t_fast / n_steps, t_ref / n_steps
     n_np = 200 if quick else 1000
     t_numpy = median_time(lambda: run_mslab("numpy", n_np), 3 if quick else 5, min_time=0.0) / n_np
     return {"scene": "chain(20, dim=3)", "method": "rk4", "dt": dt, "steps": n_steps,
             "ref_time_per_step": t_ref, "mslab_time_per_step": t_fast, "numpy_time_per_step": t_numpy,
-            "ratio": t_fast / t_ref, "numpy_ratio": t_numpy / t_ref, "max_difference_to_ref": agree}
+            "ratio": ratio, "numpy_ratio": t_numpy / t_ref, "max_difference_to_ref": agree}
 
 
 # -- 2. matched final error against scipy's RK45 ----------------------------------------
@@ -213,7 +238,7 @@ def bench_cloth_forces(quick: bool = False) -> dict:
     """Spring-force evaluations per second (mslab, numpy, reference) and the cost slope."""
     from mslab.fast import references as ref
 
-    repeats = 5 if quick else 9
+    repeats = 7 if quick else 15
     rng = np.random.default_rng(0)
     springs, x0 = cloth_springs(300, from_scene=not quick)
     x = x0 + 0.01 * rng.normal(size=x0.shape)   # stretched and compressed springs
@@ -226,8 +251,7 @@ def bench_cloth_forces(quick: bool = False) -> dict:
     with fast.use_backend("auto"):
         run_ref()
         agree = float(np.max(np.abs(springs.force(x, v) - buf)))
-        t_fast = median_time(lambda: springs.force(x, v), repeats)
-    t_ref = median_time(run_ref, repeats)
+        t_ref, t_fast, ratio = paired_times(run_ref, lambda: springs.force(x, v), repeats)
     with fast.use_backend("numpy"):
         t_numpy = median_time(lambda: springs.force(x, v), 3)
     sizes, times = [], []
@@ -241,7 +265,7 @@ def bench_cloth_forces(quick: bool = False) -> dict:
     slope = float(np.polyfit(np.log(sizes), np.log(times), 1)[0])
     return {"n_springs": int(len(springs.i)), "ref_evals_per_s": 1.0 / t_ref,
             "mslab_evals_per_s": 1.0 / t_fast, "numpy_evals_per_s": 1.0 / t_numpy,
-            "ratio": t_ref / t_fast, "numpy_ratio": t_ref / t_numpy,
+            "ratio": ratio, "numpy_ratio": t_ref / t_numpy,
             "ns_per_spring": 1e9 * t_fast / len(springs.i), "max_difference_to_ref": agree,
             "slope_sizes": sizes, "slope_times": times, "slope": slope}
 
