@@ -102,7 +102,7 @@ def _draw(x, springs, ax, pinned, colliders, limits, color):
             ylabel="y [m]",
             zlabel="z [m]",
         )
-        ax.set_box_aspect(np.maximum(hi - lo, 1e-3 * float(np.max(hi - lo))))
+        ax.set_box_aspect(np.maximum(hi - lo, 0.2 * float(np.max(hi - lo))))
 
         def update(y):
             lines.set_segments(y[springs])
