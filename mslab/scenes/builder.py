@@ -186,27 +186,33 @@ class SceneBuilder:
             raise SceneError("damping.gamma", f"must be a finite number >= 0, got {gamma!r}")
         self._gamma = float(gamma)
 
-    def _collider_params(self, stiffness, friction):
+    def _collider_params(self, stiffness, friction, slip_velocity=1e-3):
         if not np.isfinite(stiffness) or stiffness <= 0:
             raise SceneError("stiffness", f"must be > 0, got {stiffness!r}")
         if not np.isfinite(friction) or friction < 0:
             raise SceneError("friction", f"must be >= 0, got {friction!r}")
+        if not np.isfinite(slip_velocity) or slip_velocity <= 0:
+            raise SceneError("slip_velocity", f"must be > 0, got {slip_velocity!r}")
 
-    def add_plane(self, normal, offset: float, stiffness: float, friction: float = 0.0) -> None:
-        """Penalty half-space ``normal . x >= offset``."""
+    def add_plane(self, normal, offset: float, stiffness: float, friction: float = 0.0,
+                  slip_velocity: float = 1e-3) -> None:
+        """Penalty half-space ``normal . x >= offset`` (``slip_velocity``: friction regularisation)."""
         n = self._vector(normal, "plane.normal")
         if np.linalg.norm(n) == 0:
             raise SceneError("plane.normal", "must not be the zero vector")
-        self._collider_params(stiffness, friction)
-        self._colliders.append(("plane", n, float(offset), float(stiffness), float(friction)))
+        self._collider_params(stiffness, friction, slip_velocity)
+        self._colliders.append(("plane", n, float(offset), float(stiffness), float(friction),
+                                float(slip_velocity)))
 
-    def add_sphere(self, center, radius: float, stiffness: float, friction: float = 0.0) -> None:
-        """Penalty sphere (disc in 2D)."""
+    def add_sphere(self, center, radius: float, stiffness: float, friction: float = 0.0,
+                   slip_velocity: float = 1e-3) -> None:
+        """Penalty sphere (disc in 2D); ``slip_velocity``: friction regularisation."""
         c = self._vector(center, "sphere.center")
         if not np.isfinite(radius) or radius <= 0:
             raise SceneError("sphere.radius", f"must be > 0, got {radius!r}")
-        self._collider_params(stiffness, friction)
-        self._colliders.append(("sphere", c, float(radius), float(stiffness), float(friction)))
+        self._collider_params(stiffness, friction, slip_velocity)
+        self._colliders.append(("sphere", c, float(radius), float(stiffness), float(friction),
+                                float(slip_velocity)))
 
     def set_run(self, **settings) -> None:
         """Default run settings: method, dt, t_end, save_every."""
@@ -238,8 +244,8 @@ class SceneBuilder:
             effects.append(Gravity(self._gravity, mass))
         if self._gamma is not None and self._gamma > 0:
             effects.append(Damping(self._gamma, n, self.dim))
-        for kind, a, b, k, mu in self._colliders:
-            effects.append(Plane(a, b, k, mu) if kind == "plane" else Sphere(a, b, k, mu))
+        for kind, a, b, k, mu, eps in self._colliders:
+            effects.append(Plane(a, b, k, mu, eps) if kind == "plane" else Sphere(a, b, k, mu, eps))
         system = System(mass, np.array(self._pinned), effects, self.dim)
         return Scene(system, State(x, v), self.settings, name, description,
                      np.array(self._kind, dtype=str), exact)
