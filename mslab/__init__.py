@@ -17,11 +17,14 @@ from mslab import stability  # noqa: E402  (mslab.stability.* as DESIGN.md spell
 
 
 def __getattr__(name: str):
-    """``mslab.derive`` on first use (it imports sympy, which plain runs never need)."""
-    if name == "derive":
+    """``mslab.derive``, ``mslab.precision``, ``mslab.plots`` on first use.
+
+    They import sympy, scipy.integrate and matplotlib, which plain runs never need.
+    """
+    if name in ("derive", "precision", "plots"):
         import importlib
 
-        return importlib.import_module("mslab.derive")
+        return importlib.import_module(f"mslab.{name}")
     raise AttributeError(f"module 'mslab' has no attribute {name!r}")
 
 

@@ -105,15 +105,14 @@ class System:
         """
         self.counters.n_jac += 1
         size = self.n_particles * self.dim
-        stiff = sp.csr_matrix((size, size))
-        damp = None
+        stiff = damp = None
         for e in self.effects:
             kx, kv = e.jacobians(x, v)
             if kx is not None:
-                stiff = stiff + kx
+                stiff = kx if stiff is None else stiff + kx
             if kv is not None:
                 damp = kv if damp is None else damp + kv
-        return stiff, damp
+        return (sp.csr_matrix((size, size)) if stiff is None else stiff), damp
 
     @property
     def inv_mass_diag(self) -> sp.dia_matrix:

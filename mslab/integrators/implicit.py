@@ -49,8 +49,6 @@ class _NewtonVelocity(Integrator):
         v_new = v0.copy()
         tol = self.rtol * _scale(v0)
         dxdv, dvdv = self._dpoints(dt)
-        minv = system.inv_mass_diag
-        size = v0.size
         for it in range(1, self.max_iter + 1):
             X, V = self._points(state, v_new, dt)
             a, p = system.rhs(X, V)
@@ -62,19 +60,37 @@ class _NewtonVelocity(Integrator):
                 return self._finish(state, v_new, dt, p)
             K, D = system.jacobians(X, V)
             lin = K * dxdv if D is None else K * dxdv + D * dvdv
-            step_matrix = dt * (minv @ lin)
-            J = sp.identity(size, format="csc") - step_matrix
+            dv, row_sum = _newton_solve(system, lin, dt, residual.ravel())
+            c.n_solve += 1
             # roundoff floor of the residual: stiff springs (k/m ~ 1e9) amplify the rounding
             # of positions by dt * |M^-1 K|; below that no iteration can go
-            if step_matrix.nnz:
-                floor = 8.0 * np.finfo(float).eps * float(abs(step_matrix).sum(axis=1).max()) / dxdv
-                tol = max(tol, floor * _scale(X))
-            dv = spla.spsolve(J.tocsc(), -residual.ravel())
-            c.n_solve += 1
+            if row_sum > 0.0:
+                tol = max(tol, 8.0 * np.finfo(float).eps * row_sum / dxdv * _scale(X))
             v_new = v_new + dv.reshape(v0.shape)
         c.n_iter += it
         raise StepFailure(f"Newton iteration did not converge in {self.max_iter} iterations "
                           f"(residual tolerance {tol:.2e}); try a smaller dt")
+
+
+#: systems up to this many unknowns solve Newton's linear system densely (LAPACK beats
+#: building scipy.sparse objects there); larger ones use a sparse direct solve
+DENSE_MAX = 300
+
+
+def _newton_solve(system, lin, dt: float, residual: np.ndarray) -> tuple[np.ndarray, float]:
+    """Solve ``(I - dt M^-1 lin) dv = -residual``; also return ``max_i sum_j |dt M^-1 lin|_ij``."""
+    minv = np.repeat(system.inv_mass, system.dim)
+    if residual.size <= DENSE_MAX:
+        S = (dt * minv)[:, None] * lin.toarray()
+        row_sum = float(np.abs(S).sum(axis=1).max())
+        S *= -1.0
+        S[np.diag_indices_from(S)] += 1.0
+        return np.linalg.solve(S, -residual), row_sum
+    S = lin.tocsr(copy=True)
+    S.data *= np.repeat(dt * minv, np.diff(S.indptr))  # row scaling by dt M^-1
+    row_sum = float(abs(S).sum(axis=1).max()) if S.nnz else 0.0
+    J = (sp.identity(residual.size, format="csr") - S).tocsc()
+    return spla.spsolve(J, -residual), row_sum
 
 
 class ImplicitEuler(_NewtonVelocity):
