@@ -7,6 +7,7 @@ import os
 
 from mslab.commands.common import CommandError, add_common_options, atomic_write, emit_json, say
 from mslab.grading.autograde import format_report, grade, gradebook_rows
+from mslab.grading.layout import default_source
 
 
 def register(subparsers) -> None:
@@ -16,7 +17,7 @@ def register(subparsers) -> None:
                     "code runs in a sandbox process with time and memory limits.")
     p.add_argument("submissions", nargs="+", metavar="SUBMISSION",
                    help="a submission folder (NN_topic/ inside) or a class folder <student>/")
-    p.add_argument("--source", default="exercises", help="instructor's exercises with all tests"
+    p.add_argument("--source", default=None, help="instructor's exercises with all tests"
                    "(default: exercises)")
     p.add_argument("--csv", metavar="FILE", default=None, help="write a gradebook (one row per student)")
     p.add_argument("--timeout", type=float, default=10.0, metavar="S", help="seconds per test (default 10)")
@@ -34,8 +35,8 @@ def run(args) -> int:
     if args.jobs is not None and args.jobs < 1:
         raise CommandError("must be at least 1", key="--jobs")
     try:
-        results = grade(args.submissions, source=args.source, jobs=args.jobs, timeout=args.timeout,
-                        memory_mb=args.memory, only=args.exercise)
+        results = grade(args.submissions, source=args.source or default_source(), jobs=args.jobs,
+                        timeout=args.timeout, memory_mb=args.memory, only=args.exercise)
     except ValueError as err:
         raise CommandError(str(err)) from None
     if args.csv:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from mslab.commands.common import CommandError, add_common_options, emit_json, say
+from mslab.grading.layout import default_source
 from mslab.grading.release import release
 
 
@@ -20,7 +21,7 @@ def register(subparsers) -> None:
 def run(args) -> int:
     if len(args.paths) > 2:
         raise CommandError("expected [SRC] DEST", key="paths")
-    src, dest = (args.paths if len(args.paths) == 2 else ["exercises", args.paths[0]])
+    src, dest = (args.paths if len(args.paths) == 2 else [str(default_source()), args.paths[0]])
     try:
         files = release(src, dest, force=args.force)
     except ValueError as err:
