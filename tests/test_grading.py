@@ -292,6 +292,12 @@ HOSTILE = {
         def real_stability_interval(A, b, tol=1e-12):
             return None
     """,
+    "kill_runner": """
+        import os
+        import signal
+
+        os.kill(os.getppid(), signal.SIGKILL)
+    """,
     "edit_tests": """
         import os
         from pathlib import Path
@@ -330,6 +336,7 @@ REASONS = {
     "patch_pytest_and_helpers": None,
     "forge_results": None,
     "edit_tests": "NotImplementedError",
+    "kill_runner": "test runner stopped",
 }
 
 
@@ -434,6 +441,15 @@ def test_edited_and_shipped_tests_are_ignored(hostile):
 def test_symlink_to_the_solution_is_refused(hostile):
     tests = outcomes_of(hostile[0]["symlink"])
     assert hostile[0]["symlink"].total == 0 and all("links outside" in t.reason for t in tests)
+
+
+def test_killing_the_runner_costs_only_the_killer(hostile):
+    results, _ = hostile
+    assert results["kill_runner"].total == 0
+    # everyone graded by the same runner still got a real verdict, not "runner stopped"
+    for name, result in results.items():
+        if name != "kill_runner":
+            assert all("runner" not in t.reason for t in outcomes_of(result)), name
 
 
 def test_megabytes_of_printing_do_not_disturb_grading(hostile):

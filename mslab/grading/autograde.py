@@ -81,13 +81,14 @@ class SubmissionResult:
         }
 
 
-def _run_runner(job: dict, wall_limit: float) -> tuple[dict | None, str]:
-    """Start one runner, feed it the job, return its result (or None and why not)."""
+def _run_runner(job: dict, wall_limit: float) -> tuple[dict, str]:
+    """Start one runner, feed it the job; ``{key: outcome}`` of the items it finished, and why not all."""
     env = dict(os.environ, PYTEST_DISABLE_PLUGIN_AUTOLOAD="1", PYTHONDONTWRITEBYTECODE="1")
     env.pop("PYTEST_ADDOPTS", None)
     proc = subprocess.Popen([sys.executable, "-E", "-s", "-P", "-m", "mslab.grading.runner"],
                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
                             start_new_session=True, env=env, cwd=os.path.abspath(os.sep))
+    why = ""
     try:
         # wait for "ready": the runner is non-dumpable before the nonce reaches its stdin
         sel = selectors.DefaultSelector()
@@ -95,21 +96,28 @@ def _run_runner(job: dict, wall_limit: float) -> tuple[dict | None, str]:
         ready = sel.select(timeout=RUNNER_SLACK)
         sel.close()
         if not ready or proc.stdout.readline() != b"ready\n":
-            _killpg(proc)
-            return None, "the test runner did not start"
+            return {}, "the test runner did not start"
         out, _ = proc.communicate(json.dumps(job).encode(), timeout=wall_limit)
     except subprocess.TimeoutExpired:
         _killpg(proc)
-        return None, f"grading this exercise took longer than {wall_limit:.0f} s"
+        out = b""
+        why = f"grading took longer than {wall_limit:.0f} s"
     finally:
         _killpg(proc)
+    done = {}
+    prefix = job["nonce"] + " "
     for line in out[:MAX_RUNNER_OUTPUT].decode(errors="replace").splitlines():
-        if line.startswith(job["nonce"] + " "):
-            try:
-                return json.loads(line[len(job["nonce"]) + 1:]), ""
-            except ValueError:
-                break
-    return None, f"the test runner gave no result (exit code {proc.returncode})"
+        if not line.startswith(prefix):
+            continue
+        try:
+            msg = json.loads(line[len(prefix):])
+        except ValueError:
+            continue
+        if isinstance(msg, dict) and isinstance(msg.get("outcome"), dict):
+            done[str(msg.get("key"))] = msg["outcome"]
+    if len(done) < len(job["items"]) and not why:
+        why = f"the test runner stopped (exit code {proc.returncode})"
+    return done, why
 
 
 def _killpg(proc: subprocess.Popen) -> None:
@@ -136,23 +144,39 @@ def _score(exercise: Exercise, outcome: dict, errors: list[str], reason_all: str
     return result
 
 
-def _run_items(items: list[dict], timeout: float, memory_mb: int) -> dict:
-    """Run items in one runner; ``{key: outcome}``, or ``{key: None}`` with why, if it failed."""
+def _run_items(items: list[dict], timeout: float, memory_mb: int) -> tuple[dict, str]:
+    """Run items in one runner: ``({key: outcome}, why some are missing)``."""
     job = {"nonce": secrets.token_hex(16), "timeout": timeout, "memory_mb": memory_mb,
            "import_timeout": max(30.0, timeout), "items": items}
     wall = sum(timeout * (it["n_tests"] + 1) + max(30.0, timeout) for it in items) + RUNNER_SLACK
-    report, why = _run_runner(job, wall)
-    done = report.get("items") if isinstance(report, dict) and isinstance(report.get("items"), dict) else {}
-    return {it["key"]: (done.get(it["key"]), why or "not graded") for it in items}
+    return _run_runner(job, wall)
 
 
 def _run_chunk(items: list[dict], timeout: float, memory_mb: int) -> dict:
-    """Run a chunk; if its runner failed (a student may have killed it), every item alone."""
-    out = _run_items(items, timeout, memory_mb)
-    if len(items) > 1 and any(not isinstance(entry, dict) for entry, _ in out.values()):
-        for it in items:
-            if not isinstance(out[it["key"]][0], dict):
-                out.update(_run_items([it], timeout, memory_mb))
+    """Run a chunk of items: ``{key: (outcome or None, why)}``.
+
+    The runner grades items in order and reports each as it finishes. If it dies (a
+    student's process may kill it) or overruns, the first unfinished item is the suspect:
+    it is re-run alone, and the items after it get a fresh runner, so one submission can
+    never cost another one points.
+    """
+    out: dict = {}
+    pending = list(items)
+    while pending:
+        done, why = _run_items(pending, timeout, memory_mb)
+        for it in pending:
+            if it["key"] in done:
+                out[it["key"]] = (done[it["key"]], "")
+        rest = [it for it in pending if it["key"] not in done]
+        if not rest:
+            break
+        suspect = rest[0]
+        if len(pending) == 1:  # it already ran alone
+            out[suspect["key"]] = (None, why or "not graded")
+            break
+        alone, why_alone = _run_items([suspect], timeout, memory_mb)
+        out[suspect["key"]] = (alone.get(suspect["key"]), why_alone or "not graded")
+        pending = rest[1:]
     return out
 
 

@@ -15,7 +15,7 @@ student code never runs in this process. It
    import mode) with :class:`GradingPlugin`, whose ``student`` fixture forwards every call
    to the sandbox (:mod:`mslab.grading.remote`); the tests' own assertions run here;
 4. checks the test files still hold what the grader sent (else the run counts as
-   tampered) and prints one line ``NONCE JSON`` with every test's outcome.
+   tampered) and prints one line ``NONCE JSON`` per item with every test's outcome.
 """
 
 from __future__ import annotations
@@ -143,15 +143,13 @@ def run_exercise(job: dict, ex: dict) -> dict:
         shutil.rmtree(root, ignore_errors=True)
 
 
-def run_job(job: dict) -> dict:
-    """Every item (one exercise of one submission) of the job in turn: ``{"items": {key: outcome}}``."""
-    out = {}
+def run_job(job: dict):
+    """Every item (one exercise of one submission) of the job in turn: yields ``(key, outcome)``."""
     for item in job["items"]:
         try:
-            out[item["key"]] = run_exercise(job, item)
+            yield item["key"], run_exercise(job, item)
         except Exception as err:  # noqa: BLE001 - this item fails, the next one still runs
-            out[item["key"]] = {"results": {}, "errors": [f"runner failed: {type(err).__name__}: {err}"]}
-    return {"items": out}
+            yield item["key"], {"results": {}, "errors": [f"runner failed: {type(err).__name__}: {err}"]}
 
 
 def main() -> None:
@@ -164,12 +162,9 @@ def main() -> None:
     devnull = os.open(os.devnull, os.O_RDWR)
     for fd in (0, 1, 2):
         os.dup2(devnull, fd)
-    try:
-        result = run_job(job)
-    except Exception as err:  # noqa: BLE001 - reported to the grader, which fails the exercise
-        result = {"items": {}, "errors": [f"runner failed: {type(err).__name__}: {err}"]}
-    out.write(job["nonce"] + " " + json.dumps(result) + "\n")
-    out.flush()
+    for key, outcome in run_job(job):  # one line per item: a crash loses only what is left
+        out.write(job["nonce"] + " " + json.dumps({"key": key, "outcome": outcome}) + "\n")
+        out.flush()
 
 
 if __name__ == "__main__":
