@@ -212,8 +212,8 @@ class Stepper:
         args = self.model.args()
         if self.rk:
             ig = self.integrator
-            out = kn.run_explicit_rk(x, v, float(state.dissipated), ig.A, ig.b, float(dt), step, stop,
-                                     saved, k, xs, vs, ds, float(limit), *args)
+            out = kn.run_explicit_rk(x, v, float(state.dissipated), _f64(ig.A), _f64(ig.b), float(dt),
+                                     step, stop, saved, k, xs, vs, ds, float(limit), *args)
         else:
             mem_x, mem_a, mem_p = self._mem
             out = kn.run_symplectic(self.code, x, v, float(state.dissipated), mem_x, mem_a, mem_p,
