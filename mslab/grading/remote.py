@@ -128,8 +128,10 @@ class Sandbox:
                 left = deadline - time.monotonic()
                 if left <= 0:
                     self.kill()
-                    what = "importing the module" if starting else "the call"
-                    raise StudentError(f"time limit exceeded ({what} did not finish in time)")
+                    if starting:
+                        raise StudentError(f"time limit exceeded: importing the module took over "
+                                           f"{self.import_timeout:g} s")
+                    raise StudentError("time limit exceeded: the call did not finish in time")
                 if not sel.select(timeout=left):
                     continue
                 chunk = os.read(fd, 1 << 20)
@@ -158,7 +160,7 @@ class Sandbox:
             raise StudentError("the process answered something that is not a reply")
         return msg
 
-    def request(self, msg: dict, deadline: float) -> dict:
+    def request(self, msg: dict, deadline: float, limit: float | None = None) -> dict:
         self.ensure_started()
         try:
             self.proc.stdin.write(dumps(msg))
@@ -166,7 +168,12 @@ class Sandbox:
         except (BrokenPipeError, OSError):
             self.kill()
             raise StudentError("the process stopped before the call") from None
-        return self._read(deadline)
+        try:
+            return self._read(deadline)
+        except StudentError as err:
+            if limit is not None and str(err).startswith("time limit exceeded: the call"):
+                raise StudentError(f"time limit exceeded ({limit:g} s per test)") from None
+            raise
 
     def kill(self) -> None:
         if self.proc is None:
@@ -223,7 +230,7 @@ class Student:
     def __getattr__(self, name: str):
         if name.startswith("__"):
             raise AttributeError(name)
-        reply = self._sandbox.request({"op": "getattr", "name": name}, self._deadline)
+        reply = self._sandbox.request({"op": "getattr", "name": name}, self._deadline, self._timeout)
         if not reply.get("ok"):
             raise StudentError(_missing(name, reply), tuple(reply.get("mro", ())))
         if not reply.get("callable"):
@@ -231,7 +238,7 @@ class Student:
 
         def call(*args, **kwargs):
             r = self._sandbox.request({"op": "call", "name": name, "args": list(args), "kwargs": kwargs},
-                                      self._deadline)
+                                      self._deadline, self._timeout)
             if not r.get("ok"):
                 raise StudentError(f"{name}(): {r.get('error', 'failed')}", tuple(r.get("mro", ())))
             return r.get("value")
