@@ -26,14 +26,31 @@ from nbclient import NotebookClient
 HERE = Path(__file__).resolve().parent
 
 
+def coalesce_streams(outputs: list) -> list:
+    """Merge consecutive stdout (or stderr) chunks: how the kernel splits them varies between runs."""
+    merged: list = []
+    for out in outputs:
+        if (out.output_type == "stream" and merged and merged[-1].output_type == "stream"
+                and merged[-1].name == out.name):
+            merged[-1].text += out.text
+        else:
+            merged.append(out)
+    return merged
+
+
 def execute(path: Path, timeout: int = 300) -> float:
     """Run one notebook in place; returns the seconds it took."""
     nb = nbformat.read(path, as_version=4)
     nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
     start = time.perf_counter()
-    NotebookClient(nb, timeout=timeout, kernel_name="python3",
+    for cell in nb.cells:                       # no timestamps: re-runs give clean diffs
+        cell.metadata.pop("execution", None)
+    NotebookClient(nb, timeout=timeout, kernel_name="python3", record_timing=False,
                    resources={"metadata": {"path": str(path.parent)}}).execute()
     elapsed = time.perf_counter() - start
+    for cell in nb.cells:
+        if cell.cell_type == "code":
+            cell.outputs = coalesce_streams(cell.outputs)
     missing = [i for i, c in enumerate(nb.cells) if c.cell_type == "code" and c.execution_count is None]
     if missing:
         raise RuntimeError(f"{path.name}: code cells {missing} have no execution count")
