@@ -115,21 +115,28 @@ def derivatives(n: int, problem: str = "first") -> list:
     return out[:n]
 
 
-def taylor(n: int, problem: str = "first", shift=h, start=None):
+def taylor(n: int, problem: str = "first", shift=h):
     """Exact solution at ``t + shift`` as a Taylor series through ``h^n`` (seed eq. 5).
 
-    ``problem="first"``: ``y(t + h) = y + h f + h^2/2 f' f + ...`` with ``y = y(t)``
-    (symbol ``y``). ``problem="second"``: the position ``x(t + shift)`` in ``x, v, a, ...``;
-    ``taylor(n, "velocity", shift)`` gives ``v(t + shift)``.
+    Parameters
+    ----------
+    n : int
+        Highest power of h kept.
+    problem : {"first", "second", "velocity"}
+        ``"first"``: ``y(t + h) = y + h f + h^2/2 f' f + ...`` for ``y' = f(y)`` (symbol ``y``
+        for ``y(t)``). ``"second"``: the position ``x(t + shift)`` of ``x'' = a(x)`` in
+        ``x, v, a, a', ...`` at t; ``"velocity"``: ``v(t + shift)`` of the same problem.
+    shift : sympy expression
+        The time offset, a multiple of ``h`` (``-h`` for the backward series, seed eq. 22).
     """
-    y0 = sp.Symbol("y") if problem == "first" else x
-    if start is not None:
-        y0 = start
-    if problem == "velocity":
-        ds = derivatives(n + 1, "second")[1:]
-        y0 = v
+    if problem == "first":
+        y0, ds = sp.Symbol("y"), derivatives(n, "first")
+    elif problem == "second":
+        y0, ds = x, derivatives(n, "second")
+    elif problem == "velocity":
+        y0, ds = v, derivatives(n + 1, "second")[1:]
     else:
-        ds = derivatives(n, "first" if problem == "first" else "second")
+        raise ValueError(f"problem must be 'first', 'second' or 'velocity', got {problem!r}")
     series = y0 + sum(ds[k - 1] * shift**k / factorial(k) for k in range(1, n + 1))
     return _trunc(series, n)
 
@@ -260,6 +267,9 @@ def _analyse(m: Integrator, max_order: int) -> Derivation:
             y1 = _trunc(_rk_step(m, n, y0, f), n)
         error = _trunc(taylor(n, "first") - y1, n)
         components, shift = [error], 1
+    elif not m.explicit:
+        raise TypeError(f"{m.name}: no symbolic model of this implicit method (known: implicit Euler, "
+                        "its fixed-point variant, implicit midpoint)")
     elif isinstance(m, Verlet):
         problem = "two-step x'' = a(x)"
         system = _SymbolicSystem(n)
@@ -323,5 +333,8 @@ def stability_function(method: str | Integrator):
     return sp.simplify(_rational(sp.expand(r)).subs(lam, z / h))
 
 
+#: For Runge-Kutta tableaux ``R(z)`` is a polynomial (the name the lessons use).
+stability_polynomial = stability_function
+
 __all__ = ["A", "Derivation", "F", "analyse", "derivatives", "h", "local_error", "order",
-           "stability_function", "taylor", "v", "x", "z"]
+           "stability_function", "stability_polynomial", "taylor", "v", "x", "z"]

@@ -125,3 +125,25 @@ def test_leading_term_predicts_one_numerical_step(name):
 def test_reachable_as_mslab_derive():
     assert mslab.derive.order("heun") == 2
     assert mslab.derive is derive
+
+
+@pytest.mark.parametrize("a21, b", [
+    (0.5, [0.0, 1.0]),       # sum b = 1, b2 a21 = 1/2: order 2 (midpoint)
+    (0.25, [0.0, 1.0]),      # sum b = 1, b2 a21 = 1/4: order 1
+    (1.0, [0.5, 0.25]),      # sum b = 3/4: not even consistent, order 0
+    (0.75, [1 / 3, 2 / 3]),  # b2 a21 = 1/2: order 2 (a Ralston-like pair)
+])
+def test_two_stage_order_conditions(a21, b):
+    # hand conditions: order >= 1 iff b1 + b2 = 1; order 2 iff also b2 a21 = 1/2;
+    # never 3 with two stages (b2 a21^2 = 1/3 and the f'^2 f term cannot both hold)
+    expected = 0 if abs(sum(b) - 1) > 1e-12 else (2 if abs(b[1] * a21 - 0.5) < 1e-12 else 1)
+    assert derive.order(mslab.ExplicitRK([[0, 0], [a21, 0]], b)) == expected
+
+
+def test_taylor_backward_and_velocity_series():
+    x = sp.Symbol("x")
+    back = derive.taylor(3, "second", -h)
+    assert same(back, x - h * v + h**2 / 2 * a - h**3 / 6 * a1 * v)
+    assert same(derive.taylor(2, "velocity", h / 2), v + h / 2 * a + h**2 / 8 * a1 * v)
+    with pytest.raises(ValueError):
+        derive.taylor(2, "third")
