@@ -173,7 +173,7 @@ def _obj(value) -> np.ndarray:
     return arr
 
 
-def _rk_step(method: ExplicitRK, n: int, y0, f):
+def _rk_step(method: ExplicitRK, y0, f):
     """One step of the tableau on ``y' = f(y)``; ``f(y)`` returns a series (or exact value)."""
     Ar = [[_rational(sp.Float(a)) for a in row] for row in method.A]
     br = [_rational(sp.Float(b)) for b in method.b]
@@ -244,12 +244,17 @@ def analyse(method: str | Integrator, max_order: int = 5) -> Derivation:
     ------
     ValueError
         The error vanishes through the expansion (order above ``max_order``).
+    TypeError
+        An implicit method without a symbolic model here.
     """
-    return _analyse(get_method(method), int(max_order))
+    m = get_method(method)
+    tableau = (m.A.tobytes(), m.b.tobytes()) if isinstance(m, ExplicitRK) else None
+    return _analyse(m, int(max_order), tableau)
 
 
 @lru_cache(maxsize=64)
-def _analyse(m: Integrator, max_order: int) -> Derivation:
+def _analyse(m: Integrator, max_order: int, tableau=None) -> Derivation:
+    """``analyse`` for one method; ``tableau`` only keys the cache (a changed tableau is redone)."""
     n = max_order + (2 if isinstance(m, Verlet) else 1)
     y0 = sp.Symbol("y")
     relation = _implicit_relation(m)
@@ -264,7 +269,7 @@ def _analyse(m: Integrator, max_order: int) -> Derivation:
             for k in range(1, n + 1):
                 y1 = _trunc(y0 + h * f(relation(y0, y1), k - 1), k)
         else:
-            y1 = _trunc(_rk_step(m, n, y0, f), n)
+            y1 = _trunc(_rk_step(m, y0, f), n)
         error = _trunc(taylor(n, "first") - y1, n)
         components, shift = [error], 1
     elif not m.explicit:
@@ -289,7 +294,7 @@ def _analyse(m: Integrator, max_order: int) -> Derivation:
     k = _first_nonzero(components, n)
     if k is None:
         raise ValueError(f"{m.name}: local error vanishes through h^{n}; order > {max_order}")
-    p = k - 1 - (shift - 1)
+    p = k - shift
     if isinstance(error, sp.Matrix):
         leading = sp.Matrix([sp.factor(_coeff(c, k)) * h**k for c in components])
     else:
@@ -323,7 +328,7 @@ def stability_function(method: str | Integrator):
     y0 = sp.Integer(1)
     relation = _implicit_relation(m)
     if isinstance(m, ExplicitRK):
-        r = _rk_step(m, 0, y0, lambda y: lam * y)
+        r = _rk_step(m, y0, lambda y: lam * y)
     elif relation is not None:
         y1 = sp.Symbol("y1")
         r = sp.solve(sp.Eq(y1, y0 + h * lam * relation(y0, y1)), y1)[0]
