@@ -23,7 +23,8 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="mslab", description="Mass-spring systems: integrators, stability, accuracy vs cost.")
+    parser = _Parser(prog="mslab",
+                     description="Mass-spring systems: integrators, stability, accuracy vs cost.")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for name in COMMANDS:
         try:

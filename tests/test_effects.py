@@ -40,8 +40,10 @@ def check_effect(effect, x, v, conservative=True, rtol=1e-5, atol=1e-6):
         f0 = effect.force(x, np.zeros_like(v))
         np.testing.assert_allclose(f0, -grad, rtol=rtol, atol=atol)
     jx, jv = effect.jacobians(x, v)
-    np.testing.assert_allclose(dense(jx, size), num_jac(lambda y: effect.force(y, v), x), rtol=rtol, atol=atol)
-    np.testing.assert_allclose(dense(jv, size), num_jac(lambda w: effect.force(x, w), v), rtol=rtol, atol=atol)
+    fd_x = num_jac(lambda y: effect.force(y, v), x)
+    fd_v = num_jac(lambda w: effect.force(x, w), v)
+    np.testing.assert_allclose(dense(jx, size), fd_x, rtol=rtol, atol=atol)
+    np.testing.assert_allclose(dense(jv, size), fd_v, rtol=rtol, atol=atol)
     f, p = effect.force_and_power(x, v)
     np.testing.assert_allclose(f, effect.force(x, v))
     # the power an effect reports is what its non-conservative part removes: -f_diss . v >= 0

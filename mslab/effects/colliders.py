@@ -96,7 +96,8 @@ class PenaltyCollider(Effect):
             jx = jx + mu_k * t[:, :, None] * n[:, None, :]
             if dn is not None:
                 nv = np.einsum("ij,ij->i", n, vi)
-                dvt_dx = -(nv[:, None, None] * dn + n[:, :, None] * np.einsum("kb,kba->ka", vi, dn)[:, None, :])
+                v_dn = np.einsum("kb,kba->ka", vi, dn)
+                dvt_dx = -(nv[:, None, None] * dn + n[:, :, None] * v_dn[:, None, :])
                 jx = jx - mu_k * p[:, None, None] * np.einsum("kab,kbc->kac", tmat, dvt_dx)
             proj = eye - nn
             jv_blocks = -mu_k * p[:, None, None] * np.einsum("kab,kbc->kac", tmat, proj)

@@ -49,10 +49,14 @@ class _NewtonVelocity(Integrator):
         v_new = v0.copy()
         tol = self.rtol * _scale(v0)
         dxdv, dvdv = self._dpoints(dt)
-        for it in range(1, self.max_iter + 1):
-            X, V = self._points(state, v_new, dt)
+
+        def residual_at(v):
+            X, V = self._points(state, v, dt)
             a, p = system.rhs(X, V)
-            residual = v_new - v0 - dt * a
+            return X, V, v - v0 - dt * a, p
+
+        X, V, residual, p = residual_at(v_new)
+        for it in range(1, self.max_iter + 1):
             if not np.all(np.isfinite(residual)):
                 break
             if float(np.max(np.abs(residual))) <= tol:
@@ -61,12 +65,23 @@ class _NewtonVelocity(Integrator):
             K, D = system.jacobians(X, V)
             lin = K * dxdv if D is None else K * dxdv + D * dvdv
             dv, row_sum = _newton_solve(system, lin, dt, residual.ravel())
+            dv = dv.reshape(v0.shape)
             c.n_solve += 1
             # roundoff floor of the residual: stiff springs (k/m ~ 1e9) amplify the rounding
             # of positions by dt * |M^-1 K|; below that no iteration can go
             if row_sum > 0.0:
                 tol = max(tol, 8.0 * np.finfo(float).eps * row_sum / dxdv * _scale(X))
-            v_new = v_new + dv.reshape(v0.shape)
+            # backtracking line search: a full Newton step can overshoot where the force has
+            # a kink (a contact switching on); halve it until the residual decreases
+            norm = float(np.linalg.norm(residual))
+            alpha = 1.0
+            while True:
+                X, V, trial, p = residual_at(v_new + alpha * dv)
+                if alpha <= 1.0 / 64 or float(np.linalg.norm(trial)) < norm or not np.isfinite(norm):
+                    break
+                alpha *= 0.5
+            v_new = v_new + alpha * dv
+            residual = trial
         c.n_iter += it
         raise StepFailure(f"Newton iteration did not converge in {self.max_iter} iterations "
                           f"(residual tolerance {tol:.2e}); try a smaller dt")
@@ -104,8 +119,10 @@ class ImplicitEuler(_NewtonVelocity):
     Baraff-Witkin's linearised implicit Euler.
 
     Order 1; per iteration one force evaluation, one Jacobian, one linear solve (plus one
-    final residual evaluation). ``R(z) = 1/(1 - z)``: A-stable (and L-stable); it damps
-    oscillations numerically, so energy decays even without physical damping.
+    first residual evaluation, and one more for each halving of a Newton step by the
+    backtracking line search, which only kinks such as contacts switching on need).
+    ``R(z) = 1/(1 - z)``: A-stable (and L-stable); it damps oscillations numerically, so
+    energy decays even without physical damping.
     """
 
     name = "implicit_euler"
