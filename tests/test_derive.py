@@ -148,9 +148,3 @@ def test_taylor_backward_and_velocity_series():
     with pytest.raises(ValueError):
         derive.taylor(2, "third")
 
-
-def test_changed_tableau_is_analysed_again():
-    method = mslab.ExplicitRK([[0, 0], [0.5, 0]], [0, 1])
-    assert derive.order(method) == 2
-    method.b[:] = [1, 0]                 # now forward Euler in disguise
-    assert derive.order(method) == 1
