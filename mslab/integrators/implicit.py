@@ -33,6 +33,7 @@ class _NewtonVelocity(Integrator):
     explicit = False
     rtol: float = 1e-10
     max_iter: int = 25
+    full_steps: int = 4  # undamped Newton iterations before the line search starts
 
     def _points(self, state, v_new, dt):  # -> (X, V) where forces are evaluated
         raise NotImplementedError
@@ -71,13 +72,16 @@ class _NewtonVelocity(Integrator):
             # of positions by dt * |M^-1 K|; below that no iteration can go
             if row_sum > 0.0:
                 tol = max(tol, 8.0 * np.finfo(float).eps * row_sum / dxdv * _scale(X))
-            # backtracking line search: a full Newton step can overshoot where the force has
-            # a kink (a contact switching on); halve it until the residual decreases
+            # Full Newton steps first (on stiff springs the residual may grow before it falls
+            # quadratically). If that has not converged after a few iterations, the iterates
+            # are cycling around a kink of the force (a contact switching on and off):
+            # backtrack, halving the step until the residual decreases.
             norm = float(np.linalg.norm(residual))
             alpha = 1.0
             while True:
                 X, V, trial, p = residual_at(v_new + alpha * dv)
-                if alpha <= 1.0 / 64 or float(np.linalg.norm(trial)) < norm or not np.isfinite(norm):
+                if (it <= self.full_steps or alpha <= 1.0 / 64 or not np.isfinite(norm)
+                        or float(np.linalg.norm(trial)) < norm):
                     break
                 alpha *= 0.5
             v_new = v_new + alpha * dv
