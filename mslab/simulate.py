@@ -31,6 +31,7 @@ from mslab.errors import ConvergenceError, InstabilityError, StabilityWarning, S
 from mslab.integrators.base import Integrator, get_method
 from mslab.scenes.builder import Scene
 from mslab.state import State
+from mslab.threads import single_threaded_blas
 
 
 @dataclass
@@ -137,29 +138,16 @@ def _save_indices(n_steps: int, save_every: int) -> np.ndarray:
     return idx if idx[-1] == n_steps else np.append(idx, n_steps)
 
 
+@single_threaded_blas
 def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | None = None,
-             t_end: float | None = None, save_every: int | None = None, **options) -> Trajectory:
-    """Integrate a scene with a fixed step (see :func:`run` for the parameters).
-
-    Implicit methods run with single-threaded BLAS: their per-step linear algebra is small,
-    and on a busy 2-core machine OpenBLAS threads made a 192x192 solve 20x slower
-    (7.6 ms against 0.4 ms, measured on the course machine).
-    """
-    integrator = get_method(method if method is not None else scene.settings.method)
-    if integrator.explicit:
-        return run(scene, integrator, dt, t_end, save_every, **options)
-    from threadpoolctl import threadpool_limits
-
-    with threadpool_limits(1, user_api="blas"):
-        return run(scene, integrator, dt, t_end, save_every, **options)
-
-
-def run(scene: Scene, method: str | Integrator | None = None, dt: float | None = None,
-        t_end: float | None = None, save_every: int | None = None, *,
+             t_end: float | None = None, save_every: int | None = None, *,
              progress: bool | None = None, blowup: float = 1e6,
              stable_dt: float | None = None, backend: str | None = None,
              check_stability: bool = True) -> Trajectory:
     """Integrate a scene with a fixed step.
+
+    Runs with single-threaded BLAS (:mod:`mslab.threads`): Newton's solves and the
+    step-limit prediction work on small matrices, where threads only cost time.
 
     Parameters
     ----------

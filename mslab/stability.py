@@ -45,6 +45,7 @@ from mslab.integrators.implicit import ImplicitEuler, ImplicitEulerFixedPoint, I
 from mslab.integrators.symplectic import Leapfrog, SymplecticEuler, SymplecticEulerX, VelocityVerlet, Verlet
 from mslab.scenes.builder import Scene, SceneBuilder
 from mslab.state import State
+from mslab.threads import single_threaded_blas
 
 #: ``|R| <= 1 + TOL`` counts as stable (unit-modulus eigenvalues carry roundoff).
 TOL = 1e-10
@@ -454,6 +455,7 @@ def linearise(scene: Scene, x: np.ndarray | None = None, v: np.ndarray | None = 
     return K, D, inv_mass
 
 
+@single_threaded_blas
 def eigenvalues(scene: Scene, contacts: str = "possible", n_modes: int = 24,
                 dense_limit: int = 600, state: State | None = None) -> np.ndarray:
     """Eigenvalues ``lam`` of the linearised first-order system at ``scene.state0``.
