@@ -22,21 +22,9 @@ def describe(name: str) -> dict:
     """Size, effects and default run settings of a built-in scene."""
     from mslab.scenes.loader import load_scene, scene_path
 
-    scene = load_scene(name)
-    s = scene.settings
-    return {
-        "name": name,
-        "description": scene.description,
-        "dim": scene.dim,
-        "n_particles": scene.n_particles,
-        "n_springs": len(scene.spring_kind),
-        "effects": scene.effects,
-        "method": s.method,
-        "dt": s.dt,
-        "t_end": s.t_end,
-        "save_every": s.save_every,
-        "file": str(scene_path(name)),
-    }
+    summary = load_scene(name).summary()
+    del summary["scene"]
+    return {"name": name, **summary, "file": str(scene_path(name))}
 
 
 def run(args) -> int:

@@ -40,21 +40,7 @@ def run(args) -> int:
             continue
         s = scene.settings
         n_steps = step_count(s.t_end, s.dt)
-        results.append(
-            {
-                "file": name,
-                "ok": True,
-                "scene": scene.name,
-                "dim": scene.dim,
-                "n_particles": scene.n_particles,
-                "n_springs": len(scene.spring_kind),
-                "effects": scene.effects,
-                "method": s.method,
-                "dt": s.dt,
-                "t_end": s.t_end,
-                "steps": n_steps,
-            }
-        )
+        results.append({"file": name, "ok": True, **scene.summary(), "steps": n_steps})
         say(
             args,
             f"{name}: ok ({scene.n_particles} particles, {len(scene.spring_kind)} springs, effects: "

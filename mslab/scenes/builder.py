@@ -73,6 +73,14 @@ class Scene:
                 return e
         return None
 
+    def summary(self) -> dict:
+        """Size, effects and default run settings, as plain data (for tables and JSON)."""
+        s = self.settings
+        return {"scene": self.name, "description": self.description, "dim": self.dim,
+                "n_particles": self.n_particles, "n_springs": len(self.spring_kind),
+                "effects": self.effects, "method": s.method, "dt": s.dt, "t_end": s.t_end,
+                "save_every": s.save_every}
+
     def with_settings(self, **changes) -> Scene:
         """A copy of the scene with some run settings replaced."""
         return replace(self, settings=replace(self.settings, **changes))
