@@ -114,3 +114,14 @@ def test_rk4_step_matches_hand_computed_stages():
     u = M @ np.array([0.5, 0.0])
     assert new.x[1, 0] - 1.0 == pytest.approx(u[0], rel=1e-13)
     assert new.v[1, 0] == pytest.approx(u[1], rel=1e-13)
+
+
+def test_tableau_is_frozen():
+    """The tableau that steps is the tableau that stability and derive read: no later edits."""
+    rk4 = mslab.get_method("rk4")
+    with pytest.raises(ValueError, match="read-only"):
+        rk4.b[0] = 0.5
+    A = np.array([[0.0, 0.0], [1.0, 0.0]])
+    heun = mslab.ExplicitRK(A, [0.5, 0.5])
+    A[1, 0] = 7.0  # the caller's array is copied, not shared
+    assert heun.A[1, 0] == 1.0

@@ -40,14 +40,16 @@ class ExplicitRK(Integrator):
 
     def __init__(self, A, b, c=None, name: str = "explicit_rk", order: int = 0,
                  course: bool = False, doc: str | None = None):
-        self.A = np.asarray(A, dtype=float)
-        self.b = np.asarray(b, dtype=float)
-        self.c = self.A.sum(axis=1) if c is None else np.asarray(c, dtype=float)
+        self.A = np.array(A, dtype=float)
+        self.b = np.array(b, dtype=float)
+        self.c = self.A.sum(axis=1) if c is None else np.array(c, dtype=float)
         s = self.b.shape[0]
         if self.A.shape != (s, s) or self.c.shape != (s,):
             raise ValueError("Butcher tableau: A must be (s, s), b and c of length s")
         if np.any(np.triu(self.A) != 0.0):
             raise ValueError("Butcher tableau of an explicit method: A must be strictly lower triangular")
+        for coefficients in (self.A, self.b, self.c):  # the tableau that steps is the one analysed:
+            coefficients.flags.writeable = False        # no later edit may make them differ
         self.name = name
         self.order = int(order)
         self.n_stages = s
