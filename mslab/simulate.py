@@ -143,7 +143,7 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
              t_end: float | None = None, save_every: int | None = None, *,
              progress: bool | None = None, blowup: float = 1e6,
              stable_dt: float | None = None, backend: str | None = None,
-             check_stability: bool = True) -> Trajectory:
+             check_stability: bool = True, energy_blowup: float = 1e4) -> Trajectory:
     """Integrate a scene with a fixed step.
 
     Runs with single-threaded BLAS (:mod:`mslab.threads`): Newton's solves and the
@@ -162,6 +162,10 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
         Show a tqdm progress bar; None: only on a terminal for runs of many steps.
     blowup : float
         A position beyond ``blowup * (1 + scene size)`` counts as a blow-up.
+    energy_blowup : float
+        A run whose energy ledger ``K + U + D`` grows by more than this many times its
+        energy scale (:meth:`Energy.energy_scale`) is unstable too, even with bounded
+        positions; checked over the saved samples once the run is through.
     stable_dt : float, optional
         Predicted stable step, quoted in the InstabilityError message.
     backend : {"auto", "numba", "numpy"}, optional
@@ -186,7 +190,8 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
     if backend is not None and fast.check_backend(backend) != fast.BACKEND:
         with fast.use_backend(backend):  # the spring kernel in Springs.force follows it too
             return simulate(scene, method, dt, t_end, save_every, progress=progress, blowup=blowup,
-                            stable_dt=stable_dt, check_stability=check_stability)
+                            stable_dt=stable_dt, check_stability=check_stability,
+                            energy_blowup=energy_blowup)
     s = scene.settings
     integrator = get_method(method if method is not None else s.method)
     dt = float(s.dt if dt is None else dt)
@@ -271,7 +276,31 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
         _close(stats, system, before, start, step - 1, bar)
         raise SimulationInterrupted(finish(k, False)) from None
     _close(stats, system, before, start, n_steps, bar)
-    return finish(k, True)
+    traj = finish(k, True)
+    first = _energy_blowup_index(traj.energy, energy_blowup)
+    if first is not None:
+        step = int(saved[first])
+        growth = (traj.energy.total[first] - traj.energy.total[0]) / traj.energy.energy_scale()
+        hint = (f"; predicted stable dt = {stable_dt:.4g}" if stable_dt is not None
+                else "; try a smaller dt or an implicit method")
+        raise InstabilityError(
+            f"{integrator.name} blew up by step {step} (t = {step * dt:.6g}, dt = {dt:g}): the state "
+            f"stayed finite but the energy ledger K + U + D grew to {growth:.3g} x the run's energy "
+            f"scale{hint}", method=integrator.name, step=step, t=step * dt, dt=dt,
+            stable_dt=stable_dt, trajectory=finish(first, False))
+    return traj
+
+
+def _energy_blowup_index(energy: Energy, factor: float) -> int | None:
+    """First saved sample whose ledger total exceeds E(0) by ``factor`` x the energy scale.
+
+    The exact dynamics keeps ``K + U + D`` constant, and no method of mslab is entitled to
+    gain energy by orders of magnitude: such a run is unstable even when its positions stay
+    bounded (a saturated instability, seen with forward Euler beyond its limit).
+    """
+    growth = (energy.total - energy.total[0]) / energy.energy_scale()
+    over = np.flatnonzero(~(growth <= factor))  # NaN counts as over
+    return int(over[0]) if over.size else None
 
 
 def _check_stability(scene: Scene, integrator: Integrator, dt: float, stable_dt: float | None):
