@@ -89,10 +89,14 @@ def _rk_R(A: np.ndarray, b: np.ndarray, z: np.ndarray) -> np.ndarray:
             coef.append(float(b @ w))
             w = A @ w
         return np.polynomial.polynomial.polyval(z, coef)
-    flat = z.ravel()
+    # implicit: R(z) = det(I - zA + z 1 b^T) / det(I - zA), which is inf (not an error) at a pole
+    flat = z.ravel().astype(complex)
     mats = np.eye(s)[None] - flat[:, None, None] * A[None]
-    sol = np.linalg.solve(mats, np.ones((flat.size, s, 1), dtype=complex))[..., 0]
-    return (1.0 + flat * (sol @ b)).reshape(z.shape)
+    num = np.linalg.det(mats + flat[:, None, None] * np.outer(np.ones(s), b)[None])
+    den = np.linalg.det(mats)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        R = np.where(den == 0, np.inf, num / np.where(den == 0, 1.0, den))
+    return R.reshape(z.shape)
 
 
 def amplification(method: str | Integrator, z) -> np.ndarray:

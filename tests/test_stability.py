@@ -293,3 +293,21 @@ def test_max_stable_dt_at_another_state():
     assert st.max_stable_dt(scene, "verlet", state=other) == pytest.approx(0.2, rel=1e-9)
     K, _, _ = st.linearise(scene, other.x, other.v)
     np.testing.assert_allclose(np.sort(np.linalg.eigvalsh(-K.toarray())), [100 / 3, 100.0])
+
+
+def test_amplification_is_infinite_at_a_pole_not_an_error():
+    z = np.array([1.0, 0.5, -1.0, 2j])
+    R = st.amplification("implicit_euler", z)
+    assert np.isinf(R[0])
+    np.testing.assert_allclose(R[1:], 1.0 / (1.0 - z[1:]))
+    assert np.isinf(st.amplification("implicit_midpoint", np.array([2.0 + 0j]))[0])
+
+
+def test_region_plot_through_a_pole():
+    import matplotlib.pyplot as plt
+
+    from mslab.plots import plot_stability_regions
+
+    fig, ax = plt.subplots()
+    plot_stability_regions(["implicit_euler"], ax=ax, re=(-3, 3), im=(-3, 3), n=241)  # grid holds z = 1
+    plt.close(fig)

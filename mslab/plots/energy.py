@@ -38,7 +38,11 @@ def plot_energy(traj, ax=None, components: bool = True, label: str | None = None
 
 
 def plot_energy_error(trajs, ax=None):
-    """Relative error of the ledger total ``|E(t) - E(0)| / |E(0)|`` for several runs (log scale).
+    """Relative error of the ledger total for several runs (log scale).
+
+    Plots ``|E(t) - E(0)|`` divided by the run's energy scale
+    (:meth:`mslab.simulate.Energy.relative_drift`: the largest kinetic energy in the first
+    quarter of the run, since the zero of potential energy is arbitrary).
 
     Parameters
     ----------
