@@ -58,7 +58,7 @@ def main() -> int:
         f"Measured {m['date']} by `benchmarks/run_bench.py{' --quick' if args.quick else ''}` "
         f"(the same code as `mslab bench`).",
         "",
-        f"Machine: {m['cpu']}, {m['cores']} cores (shared, other jobs running), Python {m['python']}, "
+        f"Machine: {m['cpu']}, {m['cores']} cores (shared), Python {m['python']}, "
         f"numpy {m['numpy']}, scipy {m['scipy']}, numba {m['numba']}.",
         "",
         "Every time is the median of repeats after a warm-up call (compile time excluded); every",
@@ -85,9 +85,9 @@ def main() -> int:
     text += [
         "## Notes",
         "",
-        "- The machine was shared with other jobs"
+        "- The machine is shared"
         + (f" (load average {load[0]:.1f} on {m['cores']} cores at the end of the run)" if load else "")
-        + ": absolute times are inflated, the interleaved ratios much less so. On this machine the",
+        + ": other jobs inflate absolute times, the interleaved ratios much less. On this machine the",
         "  plain numpy loop is further behind the compiled references than the ~25x (chain) and",
         "  ~0.2x (cloth forces) quoted in issue 5.",
         "- Fast path: `simulate(..., backend=\"auto\")` (default) steps explicit Runge-Kutta tableaux",
@@ -99,8 +99,8 @@ def main() -> int:
         "  reused is the spring Jacobian's CSR pattern (`Springs._assemble`: index map computed",
         "  once, `np.bincount` into it afterwards), which makes the assembly faster than the",
         "  COO -> CSR conversion it replaces (last row of the table).",
-        "- Compile time was measured on the loaded machine; numba's own start (import and a first",
-        "  trivial function) took about 3.4 s of it under the same load.",
+        "- Compile time includes numba's own start (import and a first trivial function: about",
+        "  1 s on an idle machine, 3.4 s under a load average of 8).",
         "",
     ]
     (HERE / "RESULTS.md").write_text("\n".join(text) + "\n")
