@@ -16,20 +16,7 @@ from numba import njit
 def ref_acceleration(x, v, inv_mass, i, j, stiffness, rest_length, g, a):
     """``a = M^-1 (sum of Hooke spring forces) + g`` for free particles (inv_mass > 0)."""
     n, dim = x.shape
-    a[:, :] = 0.0
-    for q in range(i.shape[0]):
-        p, r = i[q], j[q]
-        dx = x[p, 0] - x[r, 0]
-        dy = x[p, 1] - x[r, 1]
-        dz = x[p, 2] - x[r, 2]
-        length = np.sqrt(dx * dx + dy * dy + dz * dz)
-        s = -stiffness[q] * (1.0 - rest_length[q] / length)
-        a[p, 0] += s * dx
-        a[p, 1] += s * dy
-        a[p, 2] += s * dz
-        a[r, 0] -= s * dx
-        a[r, 1] -= s * dy
-        a[r, 2] -= s * dz
+    ref_spring_force(x, i, j, stiffness, rest_length, a)
     for p in range(n):
         if inv_mass[p] > 0.0:
             for c in range(dim):
