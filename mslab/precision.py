@@ -50,6 +50,7 @@ import sys
 import time
 import warnings
 import weakref
+from collections.abc import Mapping
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
 
@@ -349,8 +350,9 @@ def work_precision(scene: Scene, methods, dts, t_end: float | None = None, *,
     scene : Scene
     methods : sequence of str
         mslab registry names.
-    dts : sequence of float
-        Steps; ``t_end / dt`` must be a whole number for each (see :func:`whole_dts`).
+    dts : sequence of float, or dict of method name -> sequence of float
+        Steps; ``t_end / dt`` must be a whole number for each (see :func:`whole_dts`). A dict
+        gives each method its own steps (implicit methods often need coarser ones).
     t_end : float, optional
         Default ``scene.settings.t_end``.
     scipy_methods : sequence of str
@@ -379,12 +381,13 @@ def work_precision(scene: Scene, methods, dts, t_end: float | None = None, *,
     """
     t_end = float(scene.settings.t_end if t_end is None else t_end)
     names = _method_names(methods)
-    dts = [float(dt) for dt in dts]
-    for dt in dts:
-        step_count(t_end, dt)  # refuse a dt that does not divide t_end before doing any work
+    steps = _dts_per_method(dts, names)
+    for method_dts in steps.values():
+        for dt in method_dts:
+            step_count(t_end, dt)  # refuse a dt that does not divide t_end before doing any work
     ref = reference_solution(scene, t_end)
     light = _picklable(scene)
-    tasks = [("mslab", light, m, dt, t_end, n_save, None) for m in names for dt in dts]
+    tasks = [("mslab", light, m, dt, t_end, n_save, None) for m in names for dt in steps[m]]
     tasks += [("scipy", light, s, float(r), t_end, n_save, atol) for s in scipy_methods for r in rtols]
     n_timed = len(tasks) if timing else 0
     bar = _progress_bar(len(tasks) + n_timed, progress, f"precision {scene.name}")
@@ -499,7 +502,7 @@ def convergence(scene: Scene, methods, dts, t_end: float | None = None, *, floor
     ----------
     scene : Scene
     methods : sequence of str
-    dts : sequence of float
+    dts : sequence of float, or dict of method name -> sequence of float
         Steps in the asymptotic range (small enough for every method to be stable and
         its leading error term to dominate, large enough to stay above round-off).
     t_end : float, optional
@@ -520,6 +523,18 @@ def convergence(scene: Scene, methods, dts, t_end: float | None = None, *, floor
     orders = fitted_orders(records, floor, ceiling)
     expected = {m: get_method(m).order for m in orders}
     return Convergence(records, orders, expected)
+
+
+def _dts_per_method(dts, names: list[str]) -> dict[str, list[float]]:
+    """``{method: [dt, ...]}`` from one list for all methods or a dict keyed by method name."""
+    if not isinstance(dts, Mapping):
+        common = [float(dt) for dt in dts]
+        return {m: common for m in names}
+    given = {get_method(m).name: [float(dt) for dt in d] for m, d in dts.items()}
+    missing = [m for m in names if m not in given]
+    if missing:
+        raise ValueError(f"dts: no steps given for {', '.join(missing)}")
+    return {m: given[m] for m in names}
 
 
 def whole_dts(dts, t_end: float) -> list[float]:

@@ -254,3 +254,16 @@ def test_cli_compare_on_the_built_in_chain(capsys):
     assert doc["scene"] == "chain"
     verdicts = {r["method"]: r["verdict"] for r in doc["methods"]}
     assert verdicts == {"euler": "drifting", "symplectic_euler": "bounded"}
+
+
+def test_each_method_can_have_its_own_steps():
+    scene = oscillator(stiffness=4.0, displacement=0.3, t_end=2.0)
+    dts = {"rk4": [0.2, 0.1, 0.05], "implicit-euler": [0.02, 0.01, 0.005]}
+    conv = precision.convergence(scene, ["rk4", "implicit_euler"], dts, t_end=2.0)
+    by_method = {m: sorted(r["dt"] for r in conv.records if r["method"] == m)
+                 for m in ("rk4", "implicit_euler")}
+    assert by_method == {"rk4": [0.05, 0.1, 0.2], "implicit_euler": [0.005, 0.01, 0.02]}
+    assert conv.orders["rk4"] == pytest.approx(4, abs=0.2)
+    assert conv.orders["implicit_euler"] == pytest.approx(1, abs=0.2)
+    with pytest.raises(ValueError, match="no steps given for heun"):
+        precision.convergence(scene, ["rk4", "heun"], {"rk4": [0.1]}, t_end=2.0)
