@@ -22,6 +22,7 @@ from mslab.commands.common import (
     say,
     to_jsonable,
 )
+from mslab.integrators.base import get_method
 
 
 def register(subparsers) -> None:
@@ -77,6 +78,13 @@ def run(args) -> int:
     say(args, "  ".join(h.ljust(w) for h, w in zip(header, widths, strict=True)).rstrip())
     for line in lines:
         say(args, "  ".join(c.ljust(w) for c, w in zip(line, widths, strict=True)).rstrip())
+    if any(get_method(r["method"]).symplectic and get_method(r["method"]).explicit for r in rows):
+        say(args, "note: for the partitioned methods (symplectic Euler, Verlet, leapfrog) the real "
+                  "interval is measured on a critically damped oscillator, not on y' = lam y: "
+                  "see docs/stability.md")
+    if any(r["method"] == "implicit_euler_fp" for r in rows):
+        say(args, "note: implicit_euler_fp has R(z) of implicit Euler only while its fixed-point "
+                  "iteration converges (h L < 1)")
     for f in figures:
         say(args, f"wrote {f}")
     return 0
