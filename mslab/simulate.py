@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mslab import fast
+from mslab.effects.gravity import Gravity
 from mslab.errors import ConvergenceError, InstabilityError, StabilityWarning, StepFailure
 from mslab.integrators.base import Integrator, get_method
 from mslab.scenes.builder import Scene
@@ -163,9 +164,10 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
     blowup : float
         A position beyond ``blowup * (1 + scene size)`` counts as a blow-up.
     energy_blowup : float
-        A run whose energy ledger ``K + U + D`` grows by more than this many times its
-        energy scale (:meth:`Energy.energy_scale`) is unstable too, even with bounded
-        positions; checked over the saved samples once the run is through.
+        A run whose energy ledger ``K + U + D`` grows by more than this many times the
+        scene's energy scale (:func:`initial_energy_scale`, from the initial state) is
+        unstable too, even with bounded positions; checked over the saved samples once the
+        run is through.
     stable_dt : float, optional
         Predicted stable step, quoted in the InstabilityError message.
     backend : {"auto", "numba", "numpy"}, optional
@@ -277,28 +279,45 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
         raise SimulationInterrupted(finish(k, False)) from None
     _close(stats, system, before, start, n_steps, bar)
     traj = finish(k, True)
-    first = _energy_blowup_index(traj.energy, energy_blowup)
+    scale = initial_energy_scale(scene) or traj.energy.energy_scale()
+    first = _energy_blowup_index(traj.energy, energy_blowup, scale)
     if first is not None:
         step = int(saved[first])
-        growth = (traj.energy.total[first] - traj.energy.total[0]) / traj.energy.energy_scale()
+        growth = (traj.energy.total[first] - traj.energy.total[0]) / scale
         hint = (f"; predicted stable dt = {stable_dt:.4g}" if stable_dt is not None
                 else "; try a smaller dt or an implicit method")
         raise InstabilityError(
             f"{integrator.name} blew up by step {step} (t = {step * dt:.6g}, dt = {dt:g}): the state "
-            f"stayed finite but the energy ledger K + U + D grew to {growth:.3g} x the run's energy "
-            f"scale{hint}", method=integrator.name, step=step, t=step * dt, dt=dt,
+            f"stayed finite but the energy ledger K + U + D grew by {growth:.3g} x the scene's "
+            f"energy scale{hint}", method=integrator.name, step=step, t=step * dt, dt=dt,
             stable_dt=stable_dt, trajectory=finish(first, False))
     return traj
 
 
-def _energy_blowup_index(energy: Energy, factor: float) -> int | None:
-    """First saved sample whose ledger total exceeds E(0) by ``factor`` x the energy scale.
+def initial_energy_scale(scene: Scene) -> float:
+    """An energy the scene's physics can never exceed by orders of magnitude, from the start.
+
+    ``K0 + |U0| + sum_gravity m |g| L`` with ``L = 1 + max |x0|`` (the scene's size seen
+    from the origin, where colliders usually sit): the initial kinetic and potential
+    energy plus what gravity can release over that height. Computed from the initial
+    state only, so a blow-up cannot inflate it. 0 for a scene at rest with nothing to
+    release.
+    """
+    system, x0, v0 = scene.system, scene.state0.x, scene.state0.v
+    size = 1.0 + float(np.max(np.abs(x0)))
+    drop = sum(float(np.sum(e.mass[~system.pinned]) * np.linalg.norm(e.g)) * size
+               for e in system.effects if isinstance(e, Gravity))
+    return system.kinetic_energy(v0) + abs(system.potential_energy(x0)) + drop
+
+
+def _energy_blowup_index(energy: Energy, factor: float, scale: float) -> int | None:
+    """First saved sample whose ledger total exceeds E(0) by ``factor * scale``.
 
     The exact dynamics keeps ``K + U + D`` constant, and no method of mslab is entitled to
     gain energy by orders of magnitude: such a run is unstable even when its positions stay
     bounded (a saturated instability, seen with forward Euler beyond its limit).
     """
-    growth = (energy.total - energy.total[0]) / energy.energy_scale()
+    growth = (energy.total - energy.total[0]) / scale
     over = np.flatnonzero(~(growth <= factor))  # NaN counts as over
     return int(over[0]) if over.size else None
 

@@ -56,13 +56,7 @@ def test_explicit_bounded_at_0_9_and_stopped_at_1_5_the_limit(method):
 
 
 @pytest.mark.parametrize("method", [
-    pytest.param("euler", marks=pytest.mark.xfail(
-        strict=True, raises=pytest.fail.Exception,
-        reason="known gap: at 1.5x forward Euler's instability saturates within the first saved "
-               "samples; positions stay bounded and the energy check's scale (largest K in the "
-               "first quarter of the run) is already polluted, so the run is not stopped. With a "
-               "finer save_every it is (test_forward_euler_saturated_instability_is_stopped...)")),
-    "heun", "midpoint", "rk4"])
+    "euler", "heun", "midpoint", "rk4"])
 def test_damped_stiff_chain_for_methods_unstable_without_damping(method):
     """With strong drag the Euler-type methods get a finite limit from the complex eigenvalues."""
     scene = stiff_chain(gamma_per_mass=6e3)
