@@ -133,3 +133,20 @@ def test_newton_converges_through_frictional_contacts():
     height = tr.x[..., 2] if scene.dim == 3 else tr.x[..., 1]
     assert height.min() < plane.offset + 0.05  # it did reach the floor
     assert tr.stats.n_force > tr.stats.n_iter + tr.stats.steps  # backtracking was needed
+
+
+def test_initial_energy_scale_counts_kinetic_potential_and_gravity():
+    from mslab.simulate import initial_energy_scale
+
+    b = SceneBuilder(2)
+    b.add_particle([0.0, 3.0], mass=2.0, velocity=[1.0, 0.0])
+    b.add_particle([0.0, 0.0], mass=5.0, pinned=True)  # a pinned mass releases nothing
+    b.add_gravity([0.0, -10.0])
+    scene = b.build()
+    kinetic = 0.5 * 2.0 * 1.0**2
+    potential = 2.0 * 10.0 * 3.0 + 5.0 * 10.0 * 0.0  # U = -sum m g.x
+    assert initial_energy_scale(scene) == pytest.approx(kinetic + potential + 2.0 * 10.0 * (1.0 + 3.0))
+    # a drop onto a floor keeps its ledger: never stopped by the energy check
+    b.add_plane([0.0, 1.0], 0.0, stiffness=1e4)
+    tr = mslab.simulate(b.build(), "verlet", dt=1e-3, t_end=2.0)
+    assert tr.complete and tr.energy.kinetic.max() > 50.0
