@@ -4,8 +4,7 @@ Public API (see DESIGN.md); this module only re-exports.
 """
 
 from mslab.errors import ConvergenceError, InstabilityError, MslabError, SceneError, StabilityWarning
-from mslab.integrators import ExplicitRK, Integrator, get_method, methods
-from mslab.integrators.base import COURSE_METHODS
+from mslab.integrators import COURSE_METHODS, ExplicitRK, ImplicitRK, Integrator, Splitting, get_method, methods
 from mslab.scenes import Scene, SceneBuilder, Settings, load_scene, scene_names
 from mslab.simulate import Energy, SimulationInterrupted, Stats, Trajectory, simulate
 from mslab.state import State
@@ -29,7 +28,8 @@ def __getattr__(name: str):
 
 
 __all__ = [
-    "COURSE_METHODS", "ConvergenceError", "Energy", "ExplicitRK", "InstabilityError", "Integrator",
+    "COURSE_METHODS", "ConvergenceError", "Energy", "ExplicitRK", "ImplicitRK", "InstabilityError",
+    "Integrator", "Splitting",
     "MslabError", "Scene", "SceneBuilder", "SceneError", "Settings", "SimulationInterrupted",
     "StabilityWarning", "State", "Stats", "System", "Trajectory", "get_method", "load_scene", "methods",
     "scene_names", "simulate",

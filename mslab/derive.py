@@ -35,9 +35,6 @@ import numpy as np
 import sympy as sp
 
 from mslab.integrators.base import Integrator, get_method
-from mslab.integrators.explicit import ExplicitRK
-from mslab.integrators.implicit import ImplicitEuler, ImplicitEulerFixedPoint, ImplicitMidpoint
-from mslab.integrators.symplectic import Verlet
 from mslab.state import State
 
 #: The step size, the independent variable of every expansion.
@@ -173,7 +170,7 @@ def _obj(value) -> np.ndarray:
     return arr
 
 
-def _rk_step(method: ExplicitRK, y0, f):
+def _rk_step(method, y0, f):
     """One step of the tableau on ``y' = f(y)``; ``f(y)`` returns a series (or exact value)."""
     Ar = [[_rational(sp.Float(a)) for a in row] for row in method.A]
     br = [_rational(sp.Float(b)) for b in method.b]
@@ -186,10 +183,9 @@ def _rk_step(method: ExplicitRK, y0, f):
 
 def _implicit_relation(method: Integrator):
     """The implicit one-step relation ``y1 = y0 + h f(point(y0, y1))``: the point."""
-    if isinstance(method, ImplicitEuler | ImplicitEulerFixedPoint):
-        return lambda y0, y1: y1                      # seed eq. 27
-    if isinstance(method, ImplicitMidpoint):
-        return lambda y0, y1: (y0 + y1) / 2
+    if method.family == "implicit_rk" and method.A.shape == (1, 1) and method.b[0] == 1.0:
+        g = _rational(sp.Float(method.A[0, 0]))
+        return lambda y0, y1: y0 + g * (y1 - y0)      # seed eq. 27 for g = 1
     return None
 
 
@@ -248,17 +244,17 @@ def analyse(method: str | Integrator, max_order: int = 5) -> Derivation:
         An implicit method without a symbolic model here.
     """
     m = get_method(method)
-    tableau = (m.A.tobytes(), m.b.tobytes()) if isinstance(m, ExplicitRK) else None
+    tableau = (m.A.tobytes(), m.b.tobytes()) if "A" in m.coefficients else None
     return _analyse(m, int(max_order), tableau)
 
 
 @lru_cache(maxsize=64)
 def _analyse(m: Integrator, max_order: int, tableau=None) -> Derivation:
     """``analyse`` for one method; ``tableau`` only keys the cache (a changed tableau is redone)."""
-    n = max_order + (2 if isinstance(m, Verlet) else 1)
+    n = max_order + (2 if m.family == "two_step" else 1)
     y0 = sp.Symbol("y")
     relation = _implicit_relation(m)
-    if isinstance(m, ExplicitRK) or relation is not None:
+    if m.family == "explicit_rk" or relation is not None:
         problem = "first-order y' = f(y)"
 
         def f(y, k=n):
@@ -275,7 +271,7 @@ def _analyse(m: Integrator, max_order: int, tableau=None) -> Derivation:
     elif not m.explicit:
         raise TypeError(f"{m.name}: no symbolic model of this implicit method (known: implicit Euler, "
                         "its fixed-point variant, implicit midpoint)")
-    elif isinstance(m, Verlet):
+    elif m.family == "two_step":
         problem = "two-step x'' = a(x)"
         system = _SymbolicSystem(n)
         state = State(_obj(x), _obj(v), (_obj(taylor(n, "second", -h)), 0))
@@ -327,7 +323,7 @@ def stability_function(method: str | Integrator):
     lam = sp.Symbol("lambda")
     y0 = sp.Integer(1)
     relation = _implicit_relation(m)
-    if isinstance(m, ExplicitRK):
+    if m.family == "explicit_rk":
         r = _rk_step(m, y0, lambda y: lam * y)
     elif relation is not None:
         y1 = sp.Symbol("y1")

@@ -40,7 +40,7 @@ def test_ledger_total_conserved_to_method_order_with_damping(method):
         tr = mslab.simulate(scene, method, dt=dt)
         drift.append(np.abs(tr.energy.total - tr.energy.total[0]).max())
         assert tr.energy.dissipated[-1] > 0.01  # damping really took energy out
-    if method == "implicit_midpoint":
+    if method in ("implicit_midpoint", "gauss2"):
         # it conserves quadratic invariants exactly: on a linear oscillator the ledger
         # (quadratic energy + dissipated work booked at the midpoint) closes to round-off
         assert max(drift) < 1e-13
@@ -61,9 +61,12 @@ def test_force_evaluations_are_counted_per_stage(method):
         assert s.n_jac == s.n_solve == s.n_iter == 0
     elif method == "implicit_euler_fp":
         assert s.n_force == s.n_iter and s.n_iter >= s.steps
-    else:  # Newton: one evaluation per iteration plus the converged residual check
-        assert s.n_force == s.n_iter + s.steps
-        assert s.n_jac == s.n_solve == s.n_iter >= s.steps
+    elif integ.diagonally_implicit:  # Newton per stage: one evaluation per iteration + the converged check
+        assert s.n_force == s.n_iter + integ.n_stages * s.steps
+        assert s.n_jac == s.n_solve == s.n_iter >= integ.n_stages * s.steps
+    else:  # Newton on all stages at once: each residual and each Jacobian evaluates every stage
+        assert s.n_force == integ.n_stages * (s.n_iter + s.steps)
+        assert s.n_jac == integ.n_stages * s.n_iter and s.n_solve == s.n_iter >= s.steps
 
 
 @pytest.mark.parametrize("method", ALL)
@@ -85,13 +88,14 @@ def test_step_mutates_nothing_and_pinned_never_move(method):
 
 def test_registry_names_and_flags():
     assert mslab.methods()[:10] == list(mslab.COURSE_METHODS)
-    assert set(ALL) >= {"rk3", "velocity_verlet", "implicit_midpoint"}
+    assert set(ALL) >= {"rk3", "velocity_verlet", "implicit_midpoint", "sdirk2", "gauss2", "radau_iia2",
+                        "forest_ruth", "yoshida6"}
     assert mslab.get_method("symplectic-euler").name == "symplectic_euler"
     with pytest.raises(ValueError, match="did you mean 'rk4'"):
         mslab.get_method("rk5")
     symplectic = {m for m in ALL if mslab.get_method(m).symplectic}
     assert symplectic == {"symplectic_euler", "symplectic_euler_x", "verlet", "leapfrog",
-                          "velocity_verlet", "implicit_midpoint"}
+                          "velocity_verlet", "implicit_midpoint", "gauss2", "forest_ruth", "yoshida6"}
 
 
 def test_explicit_rk_accepts_any_tableau():

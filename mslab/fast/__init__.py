@@ -147,7 +147,6 @@ def _f64(a) -> np.ndarray:
 def unsupported(system, integrator) -> str | None:
     """Why the compiled stepping loop cannot run this system and method (None: it can)."""
     from mslab.effects import Damping, Gravity, Springs
-    from mslab.integrators.explicit import ExplicitRK
     from mslab.system import System
 
     if type(system) is not System or {"rhs", "acceleration", "force"} & set(vars(system)):
@@ -155,45 +154,31 @@ def unsupported(system, integrator) -> str | None:
     others = [e.name for e in system.effects if type(e) not in (Springs, Gravity, Damping)]
     if others:
         return f"effects {others} have no compiled kernel (only springs, gravity, damping)"
-    if isinstance(integrator, ExplicitRK) and type(integrator).step is ExplicitRK.step:
-        return None
-    if _symplectic_code(integrator) is not None:
-        return None
-    return f"method '{integrator.name}' has no compiled stepping loop"
-
-
-def _symplectic_code(integrator) -> int | None:
-    from mslab.fast import kernels as kn
-    from mslab.integrators import symplectic as sy
-
-    codes = {sy.SymplecticEuler: kn.SYMPLECTIC_EULER, sy.SymplecticEulerX: kn.SYMPLECTIC_EULER_X,
-             sy.Verlet: kn.VERLET, sy.Leapfrog: kn.LEAPFROG, sy.VelocityVerlet: kn.VELOCITY_VERLET}
-    return codes.get(type(integrator))
+    if integrator.compiled is None or "step" in vars(integrator):
+        return f"method '{integrator.name}' has no compiled stepping loop"
+    return None
 
 
 class Stepper:
     """Runs the steps of ``simulate`` in compiled chunks (see :func:`stepper`).
 
-    Counts ``n_force`` on the System exactly as the numpy loop does (``n_stages`` per step,
-    the failing step included).
+    The loop is the one the method names (``Integrator.compiled``): ``"explicit_rk"`` over
+    ``(A, b)``, ``"splitting"`` over ``(drift, kick)``, ``"verlet"`` or ``"leapfrog"``.
+    Counts ``n_force`` on the System exactly as the numpy loop does (the loops return it).
     """
 
     #: most steps per compiled call
     max_chunk: int = 10000
 
     def __init__(self, system, integrator):
-        from mslab.integrators.explicit import ExplicitRK
-
         self.system = system
         self.integrator = integrator
         self.model = ForceModel(system)
-        self.rk = isinstance(integrator, ExplicitRK)
-        self.code = None if self.rk else _symplectic_code(integrator)
-        self.n_stages = integrator.n_stages
+        self.loop, self.arrays = integrator.compiled
         work = system.n_particles + self.model.i.shape[0]
         #: steps per compiled call: about 10^6 particle+spring updates, so Ctrl-C and the
         #: progress bar answer within a fraction of a second
-        self.chunk = int(min(self.max_chunk, max(1, 10**6 // max(1, work * self.n_stages))))
+        self.chunk = int(min(self.max_chunk, max(1, 10**6 // max(1, work * integrator.n_stages))))
         self._x = self._v = None
         self._mem = None
 
@@ -210,42 +195,54 @@ class Stepper:
             self._mem = self._memory(state)
         x, v = self._x, self._v
         args = self.model.args()
-        if self.rk:
-            ig = self.integrator
-            out = kn.run_explicit_rk(x, v, float(state.dissipated), _f64(ig.A), _f64(ig.b), float(dt),
-                                     step, stop, saved, k, xs, vs, ds, float(limit), *args)
+        common = (float(dt), step, stop, saved, k, xs, vs, ds, float(limit))
+        ig = self.integrator
+        if self.loop == "explicit_rk":
+            A, b = self.arrays
+            out = kn.run_explicit_rk(x, v, float(state.dissipated), _f64(A), _f64(b), *common, *args)
+        elif self.loop == "splitting":
+            drift, kick = self.arrays
+            mem_a, mem_p = self._mem
+            reuse = bool(ig.fsal and not self.system.velocity_dependent)
+            symmetric = bool(ig.symmetric_kicks and self.system.velocity_dependent)
+            out = kn.run_splitting(x, v, float(state.dissipated), _f64(drift), _f64(kick), reuse, symmetric,
+                                   mem_a, mem_p, int(ig.order), *common, *args)
         else:
             mem_x, mem_a, mem_p = self._mem
-            out = kn.run_symplectic(self.code, x, v, float(state.dissipated), mem_x, mem_a, mem_p,
-                                    float(dt), step, stop, saved, k, xs, vs, ds, float(limit),
-                                    self.system.velocity_dependent, *args)
-        new_step, k, dissipated, status = out
-        self.system.counters.n_force += self.n_stages * (new_step - step)
+            code = kn.VERLET if self.loop == "verlet" else kn.LEAPFROG
+            out = kn.run_two_step(code, x, v, float(state.dissipated), mem_x, mem_a, mem_p, *common,
+                                  self.system.velocity_dependent, *args)
+        new_step, k, dissipated, status, n_force = out
+        self.system.counters.n_force += n_force
         return new_step, k, State(x.copy(), v.copy(), self._memory_tuple(), dissipated), status == kn.OK
 
     def _memory(self, state: State):
-        """Memory arrays of the kernel from the numpy ``start`` (Verlet, leapfrog, velocity Verlet)."""
-        kn = compiled()
+        """Memory arrays of the kernel from the numpy ``start``."""
         shape = state.x.shape
+        if self.loop == "splitting":
+            mem_a, mem_p = np.zeros(shape), np.zeros(1)
+            if state.memory:
+                mem_a[:], mem_p[0] = state.memory
+            return mem_a, mem_p
         mem_x, mem_a, mem_p = np.zeros(shape), np.zeros(shape), np.zeros(1)
-        if self.code == kn.VERLET:
-            mem_x[:], mem_p[0] = state.memory[0], state.memory[1]
-        elif self.code == kn.LEAPFROG:
+        if self.loop == "verlet":
+            mem_x[:], mem_p[0] = state.memory
+        elif self.loop == "leapfrog":
             mem_x[:], mem_a[:], mem_p[0] = state.memory
-        elif self.code == kn.VELOCITY_VERLET:
-            mem_a[:], mem_p[0] = state.memory
         return mem_x, mem_a, mem_p
 
     def _memory_tuple(self) -> tuple:
-        if self.rk or self.code in (0, 1):
+        if self.loop == "explicit_rk":
             return ()
+        if self.loop == "splitting":
+            if not (self.integrator.fsal and not self.system.velocity_dependent):
+                return ()
+            mem_a, mem_p = (m.copy() for m in self._mem)
+            return (mem_a, float(mem_p[0]))
         mem_x, mem_a, mem_p = (m.copy() for m in self._mem)
-        kn = compiled()
-        if self.code == kn.VERLET:
+        if self.loop == "verlet":
             return (mem_x, float(mem_p[0]))
-        if self.code == kn.LEAPFROG:
-            return (mem_x, mem_a, float(mem_p[0]))
-        return (mem_a, float(mem_p[0]))
+        return (mem_x, mem_a, float(mem_p[0]))
 
 
 def stepper(system, integrator, backend: str | None = None) -> Stepper | None:

@@ -165,14 +165,16 @@ def run_explicit_rk(x, v, dissipated, A, b, dt, step, n_steps, saved, k, xs, vs,
     ``Y_s = y_n + h sum_{r<s} A_sr K_r``, ``K_s = F(Y_s)``, ``y_{n+1} = y_n + h sum_s b_s K_s``
     with ``y = (x, v)``, ``F(y) = (v, a(x, v))``; the dissipated work gets the same weights b.
     ``x, v`` are advanced in place; the states with indices in ``saved[k:]`` go to
-    ``xs, vs, ds``. Returns ``(step, k, dissipated, status)``: the last step taken, the next
-    free save slot, and OK or BLOWUP (then ``step`` is the step that blew up).
+    ``xs, vs, ds``. Returns ``(step, k, dissipated, status, n_force)``: the last step taken, the next
+    free save slot, OK or BLOWUP (then ``step`` is the step that blew up), and the number of
+    force evaluations made.
     """
     n, dim = x.shape
     s = b.shape[0]
     kx = np.empty((s, n, dim))
     kv = np.empty((s, n, dim))
     power = np.empty(s)
+    n_force = 0
     xi = np.empty((n, dim))
     vi = np.empty((n, dim))
     while step < n_steps:
@@ -191,6 +193,7 @@ def run_explicit_rk(x, v, dissipated, A, b, dt, step, n_steps, saved, k, xs, vs,
                             vi[p, c] = vi[p, c] + h * kv[r, p, c]
             power[st] = rhs(xi, vi, inv_mass, i, j, stiffness, rest_length, damping, damped,
                             f_gravity, gamma, kv[st])
+            n_force += 1
             for p in range(n):
                 for c in range(dim):
                     kx[st, p, c] = vi[p, c]
@@ -208,90 +211,141 @@ def run_explicit_rk(x, v, dissipated, A, b, dt, step, n_steps, saved, k, xs, vs,
             _save(x, v, dissipated, xs, vs, ds, k)
             k += 1
         if _blown_up(x, v, limit):
-            return step, k, dissipated, BLOWUP
-    return step, k, dissipated, OK
+            return step, k, dissipated, BLOWUP, n_force
+    return step, k, dissipated, OK, n_force
 
 
-# Symplectic methods, by number (see SYMPLECTIC in mslab.fast).
-SYMPLECTIC_EULER = 0
-SYMPLECTIC_EULER_X = 1
+# The two-step forms of the course, by number.
 VERLET = 2
 LEAPFROG = 3
-VELOCITY_VERLET = 4
 
 
 @njit(cache=True)
-def run_symplectic(method, x, v, dissipated, mem_x, mem_a, mem_p, dt, step, n_steps, saved, k,
-                   xs, vs, ds, limit, velocity_dependent,
-                   inv_mass, i, j, stiffness, rest_length, damping, damped, f_gravity, gamma):
-    """Steps of the symplectic methods of ``mslab/integrators/symplectic.py`` (seed eqs. 7-10, 21-26).
+def run_splitting(x, v, dissipated, drift, kick, reuse, symmetric, mem_a, mem_p, corrections,
+                  dt, step, n_steps, saved, k, xs, vs, ds, limit,
+                  inv_mass, i, j, stiffness, rest_length, damping, damped, f_gravity, gamma):
+    """Steps of a drift/kick splitting (``mslab/integrators/splitting.py``).
 
-    Each step has one force evaluation ``a = a(X, V)``; the methods differ in the point
-    ``(X, V)`` and in the update:
+    ``x += a_0 h v; v += b_0 h a; x += a_1 h v; ...; x += a_k h v`` with ``a = drift``,
+    ``b = kick``. ``reuse``: the first kick takes the acceleration of the previous step's
+    last kick from ``mem_a, mem_p`` (first same as last). ``symmetric``: each kick is
+    ``v' = v + b h a(x, (v + v')/2)``, ``corrections`` fixed-point corrections from the
+    explicit kick. Returns ``(step, k, dissipated, status, n_force)``.
+    """
+    n, dim = x.shape
+    nk = kick.shape[0]
+    a = np.empty((n, dim))
+    vn = np.empty((n, dim))
+    vm = np.empty((n, dim))
+    n_force = 0
+    while step < n_steps:
+        step += 1
+        work = 0.0
+        for st in range(nk):
+            if drift[st] != 0.0:
+                hd = dt * drift[st]
+                for q in range(n):
+                    for c in range(dim):
+                        x[q, c] = x[q, c] + hd * v[q, c]
+            h = dt * kick[st]
+            if st == 0 and reuse:
+                for q in range(n):
+                    for c in range(dim):
+                        a[q, c] = mem_a[q, c]
+                p = mem_p[0]
+            else:
+                p = rhs(x, v, inv_mass, i, j, stiffness, rest_length, damping, damped, f_gravity, gamma, a)
+                n_force += 1
+            if symmetric:
+                for q in range(n):
+                    for c in range(dim):
+                        vn[q, c] = v[q, c] + h * a[q, c]
+                for _ in range(corrections):
+                    for q in range(n):
+                        for c in range(dim):
+                            vm[q, c] = 0.5 * (v[q, c] + vn[q, c])
+                    p = rhs(x, vm, inv_mass, i, j, stiffness, rest_length, damping, damped, f_gravity,
+                            gamma, a)
+                    n_force += 1
+                    for q in range(n):
+                        for c in range(dim):
+                            vn[q, c] = v[q, c] + h * a[q, c]
+                for q in range(n):
+                    for c in range(dim):
+                        v[q, c] = vn[q, c]
+            else:
+                for q in range(n):
+                    for c in range(dim):
+                        v[q, c] = v[q, c] + h * a[q, c]
+            work += h * p
+        if drift[nk] != 0.0:
+            hd = dt * drift[nk]
+            for q in range(n):
+                for c in range(dim):
+                    x[q, c] = x[q, c] + hd * v[q, c]
+        if reuse:
+            for q in range(n):
+                for c in range(dim):
+                    mem_a[q, c] = a[q, c]
+            mem_p[0] = p
+        dissipated = dissipated + work
+        if k < saved.shape[0] and saved[k] == step:
+            _save(x, v, dissipated, xs, vs, ds, k)
+            k += 1
+        if _blown_up(x, v, limit):
+            return step, k, dissipated, BLOWUP, n_force
+    return step, k, dissipated, OK, n_force
 
-    * SYMPLECTIC_EULER: ``(X, V) = (x_n, v_n)``; ``v += h a``, ``x += h v_{n+1}``;
-    * SYMPLECTIC_EULER_X: ``X = x_n + h v_n``, ``V = v_n``; ``x = X``, ``v += h a``;
-    * VERLET: ``(x_n, v_n)``; ``x_{n+1} = 2 x_n - x_{n-1} + h^2 a``,
+
+@njit(cache=True)
+def run_two_step(method, x, v, dissipated, mem_x, mem_a, mem_p, dt, step, n_steps, saved, k,
+                 xs, vs, ds, limit, velocity_dependent,
+                 inv_mass, i, j, stiffness, rest_length, damping, damped, f_gravity, gamma):
+    """Steps of Verlet and leapfrog (``mslab/integrators/two_step.py``, seed eqs. 21-26).
+
+    One force evaluation ``a = a(X, V)`` per step:
+
+    * VERLET: ``(X, V) = (x_n, v_n)``; ``x_{n+1} = 2 x_n - x_{n-1} + h^2 a``,
       ``v_{n+1} = (x_{n+1} - x_n)/h + h/2 a`` (memory ``mem_x = x_{n-1}``, ``mem_p = [P_{n-1}]``);
     * LEAPFROG: ``X = x_n + h v_{n+1/2}``, ``V = v_{n+1/2} (+ h/2 a_n if forces depend on v)``;
       ``v_{n+1} = v_{n+1/2} + h/2 a``, ``v_{n+3/2} = v_{n+1/2} + h a`` (``mem_x = v_{n+1/2}``,
-      ``mem_a = a_n``, ``mem_p = [P_n]``);
-    * VELOCITY_VERLET: ``X = x_n + h v_n + h^2/2 a_n``, ``V = v_n + h a_n``;
-      ``v_{n+1} = v_n + h/2 (a_n + a)`` (``mem_a = a_n``, ``mem_p = [P_n]``).
+      ``mem_a = a_n``, ``mem_p = [P_n]``).
 
-    Memory arrays are updated in place. Returns as :func:`run_explicit_rk`.
+    Memory arrays are updated in place. Returns ``(step, k, dissipated, status, n_force)``.
     """
     n, dim = x.shape
     a = np.empty((n, dim))
     xg = np.empty((n, dim))
     vg = np.empty((n, dim))
+    n_force = 0
     while step < n_steps:
         step += 1
-        # the point (X, V) where the forces are evaluated
         for q in range(n):
             for c in range(dim):
-                if method == SYMPLECTIC_EULER or method == VERLET:
+                if method == VERLET:
                     xg[q, c] = x[q, c]
                     vg[q, c] = v[q, c]
-                elif method == SYMPLECTIC_EULER_X:
-                    xg[q, c] = x[q, c] + dt * v[q, c]
-                    vg[q, c] = v[q, c]
-                elif method == LEAPFROG:
+                else:
                     xg[q, c] = x[q, c] + dt * mem_x[q, c]
                     if velocity_dependent:
                         vg[q, c] = mem_x[q, c] + (0.5 * dt) * mem_a[q, c]
                     else:
                         vg[q, c] = mem_x[q, c]
-                else:  # VELOCITY_VERLET
-                    xg[q, c] = x[q, c] + dt * v[q, c] + (0.5 * dt * dt) * mem_a[q, c]
-                    vg[q, c] = v[q, c] + dt * mem_a[q, c]
         p = rhs(xg, vg, inv_mass, i, j, stiffness, rest_length, damping, damped, f_gravity, gamma, a)
-        # the update
+        n_force += 1
         for q in range(n):
             for c in range(dim):
-                if method == SYMPLECTIC_EULER:
-                    v[q, c] = v[q, c] + dt * a[q, c]
-                    x[q, c] = x[q, c] + dt * v[q, c]
-                elif method == SYMPLECTIC_EULER_X:
-                    x[q, c] = xg[q, c]
-                    v[q, c] = v[q, c] + dt * a[q, c]
-                elif method == VERLET:
+                if method == VERLET:
                     x_new = 2.0 * x[q, c] - mem_x[q, c] + (dt * dt) * a[q, c]
                     v[q, c] = (x_new - x[q, c]) / dt + (0.5 * dt) * a[q, c]
                     mem_x[q, c] = x[q, c]
                     x[q, c] = x_new
-                elif method == LEAPFROG:
+                else:
                     x[q, c] = xg[q, c]
                     v[q, c] = mem_x[q, c] + (0.5 * dt) * a[q, c]
                     mem_x[q, c] = mem_x[q, c] + dt * a[q, c]
                     mem_a[q, c] = a[q, c]
-                else:  # VELOCITY_VERLET
-                    x[q, c] = xg[q, c]
-                    v[q, c] = v[q, c] + (0.5 * dt) * (mem_a[q, c] + a[q, c])
-                    mem_a[q, c] = a[q, c]
-        if method == SYMPLECTIC_EULER or method == SYMPLECTIC_EULER_X:
-            dissipated = dissipated + dt * p
-        elif method == VERLET:
+        if method == VERLET:
             dissipated = dissipated + 0.5 * dt * (3.0 * p - mem_p[0])
         else:
             dissipated = dissipated + 0.5 * dt * (mem_p[0] + p)
@@ -300,8 +354,8 @@ def run_symplectic(method, x, v, dissipated, mem_x, mem_a, mem_p, dt, step, n_st
             _save(x, v, dissipated, xs, vs, ds, k)
             k += 1
         if _blown_up(x, v, limit):
-            return step, k, dissipated, BLOWUP
-    return step, k, dissipated, OK
+            return step, k, dissipated, BLOWUP, n_force
+    return step, k, dissipated, OK, n_force
 
 
 @njit(cache=True)

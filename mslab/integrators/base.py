@@ -3,19 +3,34 @@
 An integrator advances a :class:`~mslab.state.State` of the second-order system
 ``x' = v, v' = a(x, v)`` (seed eq. 3) by one fixed step ``dt``. It holds nothing about
 the scene: ``step(system, state, dt)`` returns a new State and mutates nothing it was
-given. Multistep methods (Verlet, leapfrog) keep what they need between steps in
-``State.memory``, created by ``start``.
+given. Methods with memory (velocity Verlet's reused acceleration, Verlet, leapfrog) keep
+what they need between steps in ``State.memory``, created by ``start``.
+
+Every method belongs to a *family* (``family``): a family is one class with one stepping
+code path, and a method is an instance of it holding nothing but coefficients. Besides
+stepping, a family answers for its methods what the analysis needs:
+
+* ``stability_function(z)`` — ``R(z)`` on Dahlquist's ``y' = lam y`` (Runge-Kutta
+  families), or None for methods without a scalar ``R``;
+* ``oscillator_matrix(h_omega, h_gamma)`` — the one-step map on the damped oscillator
+  ``x'' = -w^2 x - gamma x'`` from the coefficients;
+* ``compiled`` — which compiled loop of :mod:`mslab.fast` steps it, and with what arrays.
 """
 
 from __future__ import annotations
 
 import difflib
 
+import numpy as np
+
 from mslab.state import State
 
 #: The integrators the course teaches, in teaching order.
 COURSE_METHODS = ("euler", "symplectic_euler", "symplectic_euler_x", "heun", "midpoint", "rk4",
                   "verlet", "leapfrog", "implicit_euler", "implicit_euler_fp")
+
+#: The families, each one class in mslab/integrators/.
+FAMILIES = ("explicit_rk", "implicit_rk", "splitting", "two_step", "staggered")
 
 
 class Integrator:
@@ -27,33 +42,56 @@ class Integrator:
         Registry name.
     order : int
         Global order p (local error O(h^(p+1))).
+    family : str
+        One of :data:`FAMILIES`.
     explicit : bool
         No equation has to be solved per step.
     symplectic : bool
         Preserves the symplectic form (bounded energy error on Hamiltonian systems).
+    a_stable : bool
+        Stable for every ``z`` with ``Re z <= 0``: no step limit to predict.
     n_stages : int
-        Force evaluations per step (for implicit methods: per iteration).
+        Force evaluations per step (for implicit methods: per iteration and stage).
     n_start : int
         Extra force evaluations made once by ``start``.
+    coefficients : dict
+        The coefficients as given (read by :mod:`mslab.derive`).
     """
 
     name: str = ""
     order: int = 0
+    family: str = ""
     explicit: bool = True
     symplectic: bool = False
+    a_stable: bool = False
     n_stages: int = 1
     n_start: int = 0
-    course: bool = False
+    coefficients: dict = {}
 
     def start(self, system, state: State, dt: float) -> State:
-        """Prepare a run (start-up step of a multistep method). Default: nothing."""
+        """Prepare a run (start-up step of a method with memory). Default: nothing."""
         return state
 
     def step(self, system, state: State, dt: float) -> State:
+        """One step of size ``dt``: a new State; ``state`` is not modified."""
+        raise NotImplementedError
+
+    def stability_function(self, z: np.ndarray) -> np.ndarray | None:
+        """``R(z)`` for an array of complex ``z``; None when the method has no scalar R."""
+        return None
+
+    def oscillator_matrix(self, h_omega: np.ndarray, h_gamma: np.ndarray) -> np.ndarray:
+        """One-step map ``(..., k, k)`` on ``x'' = -w^2 x - gamma x'`` (scaled state, dt = 1)."""
         raise NotImplementedError
 
     @property
+    def compiled(self) -> tuple[str, tuple] | None:
+        """``(loop name, coefficient arrays)`` for :mod:`mslab.fast`, or None (numpy only)."""
+        return None
+
+    @property
     def implicit(self) -> bool:
+        """An equation is solved per step."""
         return not self.explicit
 
     def __repr__(self) -> str:
@@ -64,7 +102,11 @@ _REGISTRY: dict[str, Integrator] = {}
 
 
 def register(method: Integrator) -> Integrator:
-    """Add a method to the registry under ``method.name``."""
+    """Add a method to the registry under ``method.name`` (replacing one of that name)."""
+    if not method.name or not method.name.replace("_", "").isalnum():
+        raise ValueError(f"a registered method needs a name of letters, digits and '_', got {method.name!r}")
+    if method.family not in FAMILIES:
+        raise ValueError(f"method {method.name!r}: unknown family {method.family!r}")
     _REGISTRY[method.name] = method
     return method
 

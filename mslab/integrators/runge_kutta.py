@@ -1,0 +1,224 @@
+"""Runge-Kutta methods, explicit and implicit, each defined by its Butcher tableau.
+
+For ``y = (x, v)`` and ``y' = F(y) = (v, a(x, v))`` a method with ``s`` stages steps::
+
+    Y_i = y_n + h sum_j A_ij K_j,     K_i = F(Y_i)     (i = 1..s)
+    y_{n+1} = y_n + h sum_i b_i K_i
+
+Explicit tableaux (``A`` strictly lower triangular) compute the stages one after the
+other; implicit ones solve for them (:mod:`mslab.integrators.solvers`). The dissipated
+work is integrated with the same weights ``b_i`` from the power at each stage, so the
+energy ledger is as accurate as the method. The stability function
+``R(z) = det(I - zA + z 1 b^T) / det(I - zA)`` and the oscillator map ``R(dt J)`` are
+computed from the very arrays that step.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mslab.integrators.base import Integrator
+from mslab.integrators.coefficients import as_given, frozen
+from mslab.state import State
+
+
+class _RungeKutta(Integrator):
+    """What explicit and implicit tableaux share: coefficients, R(z), the oscillator map."""
+
+    def __init__(self, A, b, c=None, name: str = "runge_kutta", order: int = 0, doc: str | None = None):
+        self.coefficients = {"A": as_given(A), "b": as_given(b), "c": None if c is None else as_given(c)}
+        self.A = frozen(A, 2)
+        self.b = frozen(b, 1)
+        s = self.b.shape[0]
+        self.c = frozen(self.A.sum(axis=1) if c is None else c, 1)
+        if self.A.shape != (s, s) or self.c.shape != (s,):
+            raise ValueError(f"Butcher tableau: A must be ({s}, {s}) and c of length {s} like b, "
+                             f"got A {self.A.shape}, c {self.c.shape}")
+        self.name = name
+        self.order = int(order)
+        self.n_stages = s
+        if doc:
+            self.__doc__ = doc
+
+    def stability_function(self, z):
+        """``R(z) = det(I - zA + z 1 b^T) / det(I - zA)``; inf at a pole (explicit: a polynomial)."""
+        z = np.asarray(z, dtype=complex)
+        A, b = self.A, self.b
+        s = b.size
+        if not np.any(np.triu(A)):  # explicit: (I - zA)^-1 = sum_k (zA)^k, a polynomial of degree s
+            coef = [1.0]
+            w = np.ones(s)
+            for _ in range(s):
+                coef.append(float(b @ w))
+                w = A @ w
+            return np.polynomial.polynomial.polyval(z, coef)
+        flat = z.ravel()
+        mats = np.eye(s)[None] - flat[:, None, None] * A[None]
+        num = np.linalg.det(mats + flat[:, None, None] * np.outer(np.ones(s), b)[None])
+        den = np.linalg.det(mats)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            R = np.where(den == 0, np.inf, num / np.where(den == 0, 1.0, den))
+        return R.reshape(z.shape)
+
+    def oscillator_matrix(self, h_omega, h_gamma):
+        """``R(dt J)`` with ``dt J = [[0, 1], [-h_omega^2, -h_gamma]]`` on the state ``(x, dt v)``."""
+        w2, g = np.broadcast_arrays(np.square(np.asarray(h_omega, dtype=float)),
+                                    np.asarray(h_gamma, dtype=float))
+        shape = w2.shape
+        w2, g = w2.ravel(), g.ravel()
+        n, s = w2.size, self.b.size
+        Z = np.zeros((n, 2, 2))
+        Z[:, 0, 1] = 1.0
+        Z[:, 1, 0] = -w2
+        Z[:, 1, 1] = -g
+        # stages K = (I - A kron Z)^-1 (1 kron Z) y,  y' = (I + (b^T kron Z) K) y
+        big = np.eye(2 * s)[None] - np.einsum("ij,nab->niajb", self.A, Z).reshape(n, 2 * s, 2 * s)
+        rhs = np.einsum("i,nab->niab", np.ones(s), Z).reshape(n, 2 * s, 2)
+        with np.errstate(all="ignore"):
+            try:
+                K = np.linalg.solve(big, rhs).reshape(n, s, 2, 2)
+            except np.linalg.LinAlgError:  # a pole of R on this grid: solve point by point
+                K = np.stack([_solve_or_inf(B, r) for B, r in zip(big, rhs, strict=True)]).reshape(n, s, 2, 2)
+        M = np.eye(2)[None] + np.einsum("i,niab->nab", self.b, K)
+        return M.reshape(shape + (2, 2))
+
+    def _combine(self, state: State, vs: list, accs: list, powers: list, dt: float) -> State:
+        """``y_{n+1} = y_n + h sum_i b_i K_i`` from the stage velocities, accelerations and powers."""
+        x_new, v_new, work = state.x, state.v, 0.0
+        for i, bi in enumerate(self.b):
+            if bi != 0.0:
+                x_new = x_new + (dt * bi) * vs[i]
+                v_new = v_new + (dt * bi) * accs[i]
+                work += dt * bi * powers[i]
+        return State(x_new, v_new, (), state.dissipated + work)
+
+
+def _solve_or_inf(B: np.ndarray, r: np.ndarray) -> np.ndarray:
+    try:
+        return np.linalg.solve(B, r)
+    except np.linalg.LinAlgError:
+        return np.full_like(r, np.inf)
+
+
+class ExplicitRK(_RungeKutta):
+    """Explicit Runge-Kutta method from a Butcher tableau.
+
+    ``Y_i = y_n + h sum_{j<i} A_ij K_j``, ``K_i = F(Y_i)``, ``y_{n+1} = y_n + h sum_i b_i K_i``.
+
+    Cost: ``s`` force evaluations per step. Stability function
+    ``R(z) = 1 + z b^T (I - z A)^-1 1``, a polynomial of degree ``s``.
+
+    Parameters
+    ----------
+    A : array_like, shape (s, s), strictly lower triangular
+    b : array_like, shape (s,)
+    c : array_like, shape (s,), optional (default: row sums of A)
+        Coefficients may be floats, ints, ``Fraction``, sympy numbers or strings such as
+        ``"19372/6561"``; :mod:`mslab.derive` reads them as given (exact ones stay exact).
+    name : str
+    order : int
+    doc : str, optional
+        The method's docstring (update equations, order, cost).
+    """
+
+    family = "explicit_rk"
+    explicit = True
+
+    def __init__(self, A, b, c=None, name: str = "explicit_rk", order: int = 0, doc: str | None = None):
+        super().__init__(A, b, c, name, order, doc)
+        if np.any(np.triu(self.A) != 0.0):
+            raise ValueError("Butcher tableau of an explicit method: A must be strictly lower triangular")
+        s = self.n_stages
+        # non-zero coefficients only: rk4 combines at most one earlier stage per stage
+        self._rows = [[(j, self.A[i, j]) for j in range(i) if self.A[i, j] != 0.0] for i in range(s)]
+
+    @property
+    def compiled(self):
+        """The generic compiled Runge-Kutta loop over ``A, b``."""
+        return "explicit_rk", (self.A, self.b)
+
+    def step(self, system, state: State, dt: float) -> State:
+        """One step: ``s`` counted force evaluations."""
+        x, v = state.x, state.v
+        vs: list[np.ndarray] = []
+        accs: list[np.ndarray] = []
+        powers: list[float] = []
+        for row in self._rows:
+            xi, vi = x, v
+            for j, aij in row:
+                xi = xi + (dt * aij) * vs[j]
+                vi = vi + (dt * aij) * accs[j]
+            a, p = system.rhs(xi, vi)
+            vs.append(vi)
+            accs.append(a)
+            powers.append(p)
+        return self._combine(state, vs, accs, powers, dt)
+
+
+class ImplicitRK(_RungeKutta):
+    """Implicit (or diagonally implicit) Runge-Kutta method from a Butcher tableau.
+
+    The stages are unknown: with ``V_i`` the stage velocities,
+    ``X_i = x_n + h sum_j A_ij V_j`` and ``V_i = v_n + h sum_j A_ij a(X_j, V_j)``;
+    then ``x_{n+1} = x_n + h sum_i b_i V_i``, ``v_{n+1} = v_n + h sum_i b_i a(X_i, V_i)``.
+
+    ``solver="newton"`` (default) solves for the ``V_i`` by Newton's method with the
+    effects' Jacobians (:func:`mslab.integrators.solvers.newton_stages`): stage by stage
+    when ``A`` is lower triangular (DIRK), all stages at once otherwise.
+    ``solver="fixed_point"`` iterates ``Y <- y_n + h A F(Y)``, which needs only force
+    evaluations but converges only while ``h L |A| < 1``.
+
+    Cost per step: Newton — per iteration one force evaluation, one Jacobian and one linear
+    solve per stage, plus the evaluations of the residual; fixed point — ``s`` evaluations
+    per iteration. Counted in ``n_force, n_jac, n_solve, n_iter``.
+
+    Parameters
+    ----------
+    A : array_like, shape (s, s)
+    b, c : array_like, shape (s,)
+    name : str
+    order : int
+    solver : {"newton", "fixed_point"}
+    a_stable : bool, optional
+        Declared A-stability (tested against ``R(z)``); default: measured on a grid.
+    doc : str, optional
+    """
+
+    family = "implicit_rk"
+    explicit = False
+    rtol: float = 1e-10
+    max_iter: int = 25
+
+    def __init__(self, A, b, c=None, name: str = "implicit_rk", order: int = 0, solver: str = "newton",
+                 symplectic: bool = False, doc: str | None = None):
+        super().__init__(A, b, c, name, order, doc)
+        if solver not in ("newton", "fixed_point"):
+            raise ValueError(f"solver must be 'newton' or 'fixed_point', got {solver!r}")
+        self.solver = solver
+        self.symplectic = symplectic
+        self.diagonally_implicit = not np.any(np.triu(self.A, 1))
+        if solver == "fixed_point":
+            self.max_iter = 200
+        self.a_stable = solver == "newton" and self._a_stable()
+
+    def _a_stable(self) -> bool:
+        """``|R(iy)| <= 1`` on the imaginary axis, no pole in the left half plane, ``|R(-inf)| <= 1``."""
+        y = np.concatenate([[0.0], np.geomspace(1e-3, 1e6, 400)])
+        on_axis = np.abs(self.stability_function(1j * y))
+        theta = np.linspace(0.5 * np.pi, 1.5 * np.pi, 181)
+        left = np.abs(self.stability_function(np.outer(np.geomspace(1e-2, 1e6, 60), np.exp(1j * theta))))
+        return bool(np.all(on_axis <= 1.0 + 1e-9) and np.all(left <= 1.0 + 1e-9))
+
+    def step(self, system, state: State, dt: float) -> State:
+        """One step: solve for the stages, then combine them with ``b``."""
+        from mslab.integrators import solvers
+
+        if self.solver == "fixed_point":
+            vs, accs, powers = solvers.fixed_point_stages(self, system, state, dt)
+        else:
+            vs, accs, powers = solvers.newton_stages(self, system, state, dt)
+        if np.array_equal(self.b, self.A[-1]):  # stiffly accurate: the new state is the last stage
+            X = state.x + dt * sum(a * v for a, v in zip(self.A[-1], vs, strict=True) if a != 0.0)
+            work = dt * float(self.b @ np.asarray(powers))
+            return State(X, vs[-1], (), state.dissipated + work)
+        return self._combine(state, vs, accs, powers, dt)

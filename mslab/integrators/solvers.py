@@ -1,0 +1,213 @@
+"""The equation solvers of the implicit Runge-Kutta family: Newton and fixed-point iteration.
+
+Both find the stage velocities ``V_i`` of ``X_i = x_n + h sum_j A_ij V_j``,
+``V_i = v_n + h sum_j A_ij a(X_j, V_j)`` (see :class:`~mslab.integrators.ImplicitRK`).
+
+* **Newton** linearises the forces with the effects' Jacobians ``K = df/dx``,
+  ``D = df/dv``. A diagonally implicit tableau is solved stage by stage: stage ``i``
+  solves ``g(V) = V - v^ - h g_i a(x^ + h g_i V, V) = 0`` (``g_i = A_ii``; ``x^, v^``
+  collect the earlier stages) with the matrix ``I - h g_i M^-1 (h g_i K + D)``. A full
+  tableau couples all stages in one system with blocks
+  ``delta_ik I - h sum_j A_ij M^-1 (h K_j A_jk + D_j delta_jk)``. Full Newton steps first
+  (stiff springs need them); after ``full_steps`` iterations a backtracking line search
+  halves the step until the residual falls (a contact switching on and off makes the
+  iterates cycle otherwise).
+* **Fixed point** iterates ``Y <- y_n + h A F(Y)`` from ``Y = y_n``; a contraction only
+  while ``h L |A| < 1``. Growing iterates stop the step with a message naming Newton.
+
+Counted: ``n_force`` (every residual), ``n_jac`` (every Jacobian), ``n_solve`` (every
+linear solve), ``n_iter`` (every iteration).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from mslab.errors import StepFailure
+
+#: systems up to this many unknowns solve Newton's linear system densely (LAPACK beats
+#: building scipy.sparse objects there); larger ones use a sparse direct solve
+DENSE_MAX = 300
+
+
+def _scale(*arrays: np.ndarray) -> float:
+    return 1.0 + max(float(np.max(np.abs(a))) if a.size else 0.0 for a in arrays)
+
+
+def _newton(system, u0: np.ndarray, residual: Callable, solve: Callable, tol: float, max_iter: int,
+            full_steps: int):
+    """Newton's iteration ``u <- u + alpha du`` with ``J du = -r``.
+
+    ``residual(u) -> (r, point)``; ``solve(point, r) -> (du, floor)`` assembles and solves
+    the linear system at ``point`` and returns a round-off floor for the tolerance.
+    Returns ``(u, point)`` at convergence; raises StepFailure otherwise.
+    """
+    c = system.counters
+    u = u0
+    r, point = residual(u)
+    for it in range(1, max_iter + 1):
+        if not np.all(np.isfinite(r)):
+            break
+        if float(np.max(np.abs(r))) <= tol:
+            c.n_iter += it - 1
+            return u, point
+        du, floor = solve(point, r)
+        c.n_solve += 1
+        tol = max(tol, floor)
+        norm = float(np.linalg.norm(r))
+        alpha = 1.0
+        while True:
+            trial, trial_point = residual(u + alpha * du)
+            if (it <= full_steps or alpha <= 1.0 / 64 or not np.isfinite(norm)
+                    or float(np.linalg.norm(trial)) < norm):
+                break
+            alpha *= 0.5
+        u = u + alpha * du
+        r, point = trial, trial_point
+    c.n_iter += it
+    raise StepFailure(f"Newton iteration did not converge in {max_iter} iterations "
+                      f"(residual tolerance {tol:.2e}); try a smaller dt")
+
+
+def _linear_solve(S, residual: np.ndarray) -> tuple[np.ndarray, float]:
+    """Solve ``(I - S) du = -residual`` (S sparse); also return ``max_i sum_j |S_ij|``."""
+    if residual.size <= DENSE_MAX:
+        S = S.toarray()
+        row_sum = float(np.abs(S).sum(axis=1).max()) if S.size else 0.0
+        J = -S
+        J[np.diag_indices_from(J)] += 1.0
+        return np.linalg.solve(J, -residual), row_sum
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    S = S.tocsr()
+    row_sum = float(abs(S).sum(axis=1).max()) if S.nnz else 0.0
+    J = (sp.identity(residual.size, format="csr") - S).tocsc()
+    return spla.spsolve(J, -residual), row_sum
+
+
+def _scaled(system, lin, factor: float):
+    """``factor * M^-1 lin`` (rows scaled by the inverse masses; 0 on pinned particles)."""
+    lin = lin.tocsr(copy=True)
+    minv = np.repeat(system.inv_mass, system.dim)
+    lin.data *= np.repeat(factor * minv, np.diff(lin.indptr))
+    return lin
+
+
+def newton_stages(method, system, state, dt: float):
+    """Stage velocities, accelerations and powers of an implicit tableau by Newton's method."""
+    if method.diagonally_implicit:
+        return _newton_dirk(method, system, state, dt)
+    return _newton_coupled(method, system, state, dt)
+
+
+def _newton_dirk(method, system, state, dt: float):
+    A = method.A
+    vs, accs, powers = [], [], []
+    tol0 = method.rtol * _scale(state.v)
+    for i in range(A.shape[0]):
+        xh = state.x + dt * sum((A[i, j] * vs[j] for j in range(i) if A[i, j] != 0.0), np.zeros_like(state.x))
+        vh = state.v + dt * sum((A[i, j] * accs[j] for j in range(i) if A[i, j] != 0.0),
+                                np.zeros_like(state.v))
+        g = A[i, i]
+        if g == 0.0:  # an explicit stage (first stage of an ESDIRK method)
+            a, p = system.rhs(xh, vh)
+            vs.append(vh)
+            accs.append(a)
+            powers.append(p)
+            continue
+
+        def residual(V, xh=xh, vh=vh, g=g):
+            X = xh + (dt * g) * V
+            a, p = system.rhs(X, V)
+            return V - vh - (dt * g) * a, (X, V, a, p)
+
+        def solve(point, r, g=g):
+            X, V, _, _ = point
+            K, D = system.jacobians(X, V)
+            lin = K * (dt * g) if D is None else K * (dt * g) + D
+            S = _scaled(system, lin, dt * g)
+            du, row_sum = _linear_solve(S, r.ravel())
+            # round-off floor: stiff springs amplify the rounding of positions by row_sum
+            floor = 8.0 * np.finfo(float).eps * row_sum / (dt * g) * _scale(X) if row_sum > 0 else 0.0
+            return du.reshape(r.shape), floor
+
+        V, (X, V, a, p) = _newton(system, vh.copy(), residual, solve, tol0, method.max_iter, full_steps=4)
+        vs.append(V)
+        accs.append(a)
+        powers.append(p)
+    return vs, accs, powers
+
+
+def _newton_coupled(method, system, state, dt: float):
+    import scipy.sparse as sp
+
+    A = method.A
+    s = A.shape[0]
+    n = state.v.size
+    shape = state.v.shape
+    tol = method.rtol * _scale(state.v)
+
+    def points(U):
+        V = U.reshape((s,) + shape)
+        X = state.x[None] + dt * np.einsum("ij,jnd->ind", A, V)
+        return X, V
+
+    def residual(U):
+        X, V = points(U)
+        evals = [system.rhs(X[i], V[i]) for i in range(s)]
+        a = np.stack([e[0] for e in evals])
+        G = V - state.v[None] - dt * np.einsum("ij,jnd->ind", A, a)
+        return G.ravel(), (X, V, a, [e[1] for e in evals])
+
+    def solve(point, r):
+        X, V, _, _ = point
+        blocks_K, blocks_D = [], []
+        for i in range(s):
+            K, D = system.jacobians(X[i], V[i])
+            blocks_K.append(_scaled(system, K, 1.0))
+            blocks_D.append(_scaled(system, D, 1.0) if D is not None else sp.csr_matrix((n, n)))
+        Ak = sp.kron(sp.csr_matrix(A), sp.identity(n), format="csr")
+        S = dt * dt * (Ak @ sp.block_diag(blocks_K, format="csr") @ Ak) \
+            + dt * (Ak @ sp.block_diag(blocks_D, format="csr"))
+        du, row_sum = _linear_solve(S, r)
+        floor = 8.0 * np.finfo(float).eps * row_sum / dt * _scale(X) if row_sum > 0 else 0.0
+        return du, floor
+
+    U0 = np.tile(state.v.ravel(), s)
+    _, (X, V, a, p) = _newton(system, U0, residual, solve, tol, method.max_iter, full_steps=4)
+    return list(V), list(a), p
+
+
+def fixed_point_stages(method, system, state, dt: float):
+    """Stage velocities, accelerations and powers by the iteration ``Y <- y_n + h A F(Y)``."""
+    A = method.A
+    s = A.shape[0]
+    x0, v0 = state.x, state.v
+    X = np.repeat(x0[None], s, axis=0)
+    V = np.repeat(v0[None], s, axis=0)
+    tol_x, tol_v = method.rtol * _scale(x0), method.rtol * _scale(v0)
+    prev, growing = np.inf, 0
+    c = system.counters
+    for it in range(1, method.max_iter + 1):
+        evals = [system.rhs(X[i], V[i]) for i in range(s)]
+        a = np.stack([e[0] for e in evals])
+        X_next = x0[None] + dt * np.einsum("ij,jnd->ind", A, V)
+        V_next = v0[None] + dt * np.einsum("ij,jnd->ind", A, a)
+        change = max(float(np.max(np.abs(X_next - X))) / tol_x, float(np.max(np.abs(V_next - V))) / tol_v)
+        X, V = X_next, V_next
+        if change <= 1.0:
+            c.n_iter += it
+            return list(V), list(a), [e[1] for e in evals]
+        growing = growing + 1 if change > prev else 0
+        prev = change
+        if growing >= 3 or not np.isfinite(change):
+            c.n_iter += it
+            raise StepFailure(
+                f"fixed-point iteration diverges at dt={dt:g} (iterates grow: h*L >= 1, the map is no "
+                f"contraction); use Newton's method (method 'implicit_euler') or a smaller dt")
+    c.n_iter += method.max_iter
+    raise StepFailure(f"fixed-point iteration did not converge in {method.max_iter} iterations at "
+                      f"dt={dt:g}; use Newton's method (method 'implicit_euler') or a smaller dt")

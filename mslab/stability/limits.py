@@ -1,0 +1,160 @@
+"""Stability limits along rays: the real interval, the imaginary limit, the oscillator limit.
+
+* Runge-Kutta methods: the imaginary limit is exact. With ``R = N/D``
+  (``N(z) = det(I - zA + z 1 b^T)``, ``D(z) = det(I - zA)``, polynomials recovered from
+  their values on the unit circle), ``|R(iy)| <= 1`` is ``E(y) = |N(iy)|^2 - |D(iy)|^2 <= 0``,
+  an even polynomial. Coefficients of ``E`` at round-off level (relative to the size of the
+  products that form them) are zero; then the sign of the lowest remaining one decides
+  small ``y`` — positive, however slightly, means the limit 0 (forward Euler, Heun, and
+  methods of order 5 and higher such as Dormand-Prince) — and the smallest positive root
+  where ``E`` turns positive is the limit. On the undamped oscillator the map has
+  eigenvalues ``R(+-i dt w)``, so the oscillator limit is the imaginary limit.
+* Every other limit is found on the method's own map: a scan of the ray
+  ``|dt lam| in [S_MIN, S_MAX]`` (then bisection) with ``rho <= 1 + TOL``, where ``TOL``
+  only absorbs the round-off of eigenvalues near a double eigenvalue (the end of the
+  symplectic methods' interval); a method unstable at ``S_MIN`` gets 0, one stable up to
+  ``S_MAX`` gets inf.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+from mslab.integrators.base import Integrator, get_method
+from mslab.stability.functions import amplification, amplification_matrix, spectral_radius, tableau
+
+#: ``rho <= 1 + TOL`` counts as stable in the scans (round-off of near-defective eigenvalues).
+TOL = 1e-10
+#: Smallest ``|dt lam|`` examined by a scan; a method unstable there gets the limit 0.
+S_MIN = 1e-2
+#: Largest ``|dt lam|`` examined; a method stable up to here gets the limit inf.
+S_MAX = 1e6
+_GRID = np.geomspace(S_MIN, S_MAX, 1201)
+
+
+def _ray_limit(rho, chunk: int = 100) -> float:
+    """Largest s with ``rho(s') <= 1 + TOL`` for all s' in [S_MIN, s] (0 / inf at the ends)."""
+    first = None
+    for start in range(0, _GRID.size, chunk):
+        bad = np.flatnonzero(~(rho(_GRID[start:start + chunk]) <= 1.0 + TOL))
+        if bad.size:
+            first = start + int(bad[0])
+            break
+    if first is None:
+        return np.inf
+    if first == 0:
+        return 0.0
+    lo, hi = _GRID[first - 1], _GRID[first]
+    for _ in range(80):
+        mid = 0.5 * (lo + hi)
+        if rho(np.array([mid]))[0] <= 1.0 + TOL:
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo <= 1e-15 * hi:
+            break
+    return float(lo)
+
+
+def _poly_from_circle(values: np.ndarray) -> np.ndarray:
+    """Real coefficients (ascending) of a polynomial from its values at the K-th roots of unity."""
+    return np.real(np.fft.fft(values) / values.size)
+
+
+def rk_polynomials(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Coefficients (ascending, degree <= s) of ``N(z) = det(I - zA + z 1 b^T)`` and ``D(z) = det(I - zA)``."""
+    s = b.size
+    K = 2 * s + 2
+    z = np.exp(2j * np.pi * np.arange(K) / K)
+    mats = np.eye(s)[None] - z[:, None, None] * A[None]
+    num = np.linalg.det(mats + z[:, None, None] * np.outer(np.ones(s), b)[None])
+    return _poly_from_circle(num)[: s + 1], _poly_from_circle(np.linalg.det(mats))[: s + 1]
+
+
+def _abs2_on_axis(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``|p(iy)|^2`` as coefficients in y (ascending) and the size of the products forming each."""
+    q = p * (1j ** np.arange(p.size))
+    qc = p * ((-1j) ** np.arange(p.size))
+    return np.real(np.convolve(q, qc)), np.convolve(np.abs(p), np.abs(p))
+
+
+def _rk_imag_limit(A: np.ndarray, b: np.ndarray) -> float:
+    N, D = rk_polynomials(A, b)
+    eN, sN = _abs2_on_axis(N)
+    eD, sD = _abs2_on_axis(D)
+    E = eN - eD
+    size = sN + sD
+    E[np.abs(E) <= 64 * np.finfo(float).eps * np.maximum(size, 1.0)] = 0.0
+    nonzero = np.flatnonzero(E)
+    if nonzero.size == 0:
+        return np.inf                       # |R(iy)| = 1 on the whole axis
+    if E[nonzero[0]] > 0:
+        return 0.0                          # |R(iy)| > 1 for small y, however slightly
+    roots = np.roots(E[::-1])
+    real = np.sort([r.real for r in roots if r.real > 0 and abs(r.imag) <= 1e-9 * abs(r)])
+    poly = np.polynomial.Polynomial(E)
+    for r in real:
+        if poly(r * (1 + 1e-7)) > 0:
+            return float(r)
+    return np.inf
+
+
+@lru_cache(maxsize=256)
+def _real_interval(m: Integrator) -> float:
+    return -_ray_limit(lambda s: np.abs(amplification(m, -s)))
+
+
+@lru_cache(maxsize=256)
+def _imag_limit(m: Integrator) -> float:
+    tab = tableau(m)
+    if tab is not None:
+        return _rk_imag_limit(*tab)
+    return _ray_limit(lambda s: np.maximum(np.abs(amplification(m, 1j * s)),
+                                           np.abs(amplification(m, -1j * s))))
+
+
+@lru_cache(maxsize=256)
+def _oscillator_limit(m: Integrator) -> float:
+    if tableau(m) is not None:
+        return _imag_limit(m)
+    return _ray_limit(lambda s: spectral_radius(amplification_matrix(m, s)))
+
+
+def real_interval(method: str | Integrator) -> float:
+    """Left end ``a`` of the real stability interval ``[a, 0]`` (``-inf``: whole negative axis).
+
+    For splittings and the two-step forms the ray is the critically damped oscillator
+    (see :mod:`mslab.stability.functions`).
+    """
+    return _real_interval(get_method(method))
+
+
+def imag_limit(method: str | Integrator) -> float:
+    """Largest ``y`` with ``|R(i t)| <= 1`` for all ``|t| <= y`` (0: none, inf: whole axis)."""
+    return _imag_limit(get_method(method))
+
+
+def oscillator_limit(method: str | Integrator) -> float:
+    """Supremum of the ``dt * w`` for which the method is stable on ``x'' = -w^2 x``.
+
+    0 for forward Euler (never stable undamped), 2 for symplectic Euler and Verlet (stable
+    for ``dt w < 2``; at 2 the map is a Jordan block), ``2 sqrt 2`` for RK4, about 1.5734 for
+    Forest-Ruth, inf for the A-stable implicit methods.
+    """
+    return _oscillator_limit(get_method(method))
+
+
+def summary(methods=None) -> list[dict]:
+    """Real interval, imaginary limit and oscillator limit for each method (a table's rows)."""
+    from mslab.integrators.base import methods as all_methods
+
+    names = all_methods() if methods is None else [get_method(m).name for m in methods]
+    rows = []
+    for name in names:
+        m = get_method(name)
+        rows.append({"method": name, "explicit": bool(m.explicit), "order": int(m.order),
+                     "real_interval": real_interval(m), "imag_limit": imag_limit(m),
+                     "oscillator_limit": oscillator_limit(m)})
+    return rows
