@@ -4,7 +4,15 @@ Public API (see DESIGN.md); this module only re-exports.
 """
 
 from mslab.errors import ConvergenceError, InstabilityError, MslabError, SceneError, StabilityWarning
-from mslab.integrators import COURSE_METHODS, ExplicitRK, ImplicitRK, Integrator, Splitting, get_method, methods
+from mslab.integrators import (
+    COURSE_METHODS,
+    ExplicitRK,
+    ImplicitRK,
+    Integrator,
+    Splitting,
+    get_method,
+    methods,
+)
 from mslab.scenes import Scene, SceneBuilder, Settings, load_scene, scene_names
 from mslab.simulate import Energy, SimulationInterrupted, Stats, Trajectory, simulate
 from mslab.state import State

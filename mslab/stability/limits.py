@@ -64,7 +64,7 @@ def _poly_from_circle(values: np.ndarray) -> np.ndarray:
 
 
 def rk_polynomials(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Coefficients (ascending, degree <= s) of ``N(z) = det(I - zA + z 1 b^T)`` and ``D(z) = det(I - zA)``."""
+    """Coefficients (ascending, degree <= s) of ``N(z) = det(I - zA + z 1 b^T)``, ``D(z) = det(I - zA)``."""
     s = b.size
     K = 2 * s + 2
     z = np.exp(2j * np.pi * np.arange(K) / K)

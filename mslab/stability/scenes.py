@@ -17,11 +17,10 @@ import scipy.sparse.linalg as spla
 
 from mslab.integrators.base import Integrator, get_method
 from mslab.scenes.builder import Scene
-from mslab.state import State
 from mslab.stability.functions import amplification
 from mslab.stability.limits import _ray_limit, oscillator_limit
+from mslab.state import State
 from mslab.threads import single_threaded_blas
-
 
 
 def _free_dofs(system) -> np.ndarray:
