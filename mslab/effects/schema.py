@@ -203,7 +203,7 @@ def vectors(value, name: str, dim: int, n: int | None = None) -> np.ndarray:
     if not isinstance(value, list) or not value:
         raise SceneError(name, f"must be a non-empty list of {dim}-vectors, got {describe(value)}")
     if n is not None and len(value) != n:
-        raise SceneError(name, f"must have one entry per item ({n}), got {len(value)}")
+        raise SceneError(name, f"must have one entry per particle ({n}), got {len(value)}")
     return np.array([vector(p, f"{name}[{i}]", dim) for i, p in enumerate(value)]).reshape(-1, dim)
 
 
@@ -313,8 +313,9 @@ def check_values(keys: Iterable[Key], raw: Mapping, prefix: str, dim: int, n: in
         name = f"{prefix}{key.name}"
         if key.name not in raw or raw[key.name] is None:
             if key.required:
-                doc = f" ({key.doc})" if key.doc else missing_hint
-                raise SceneError(name, f"missing{doc}")
+                doc = f": {key.doc}" if key.doc else missing_hint
+                unit = f" in {key.unit}" if key.unit and key.doc else ""
+                raise SceneError(name, f"missing{doc}{unit}")
             out[key.name] = key.default
             continue
         out[key.name] = value = check_value(key, raw[key.name], name, dim, n, sizes)

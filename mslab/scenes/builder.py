@@ -185,7 +185,7 @@ class SceneBuilder:
 
     def add_effect(self, effect: type[Effect], **raw) -> None:
         """Check keyword values against the effect's schema and record them (builder methods use this)."""
-        prefix = f"{effect.section or effect.name}."
+        prefix = f"{effect.name}."
         effect.add(self, self.check_effect(effect, raw, prefix), prefix)
 
     def check_effect(self, effect: type[Effect], raw: dict, prefix: str, n: int | None = None) -> dict:
