@@ -324,7 +324,8 @@ def test_anchor_spring_is_hookes_law_to_a_fixed_point():
     x = np.array([[0.3, -0.4]])
     np.testing.assert_allclose(anchors.force(x, x), [[-8.0 * 0.3, 8.0 * 0.4]])
     assert anchors.energy(x) == pytest.approx(0.5 * 8.0 * 0.25)
-    tr = mslab.simulate(scene, "rk4", dt=np.pi / 2000, t_end=np.pi / 2, check_stability=False)  # w = 2: half a period
+    # w = sqrt(k / m) = 2: half a period at t = pi / 2
+    tr = mslab.simulate(scene, "rk4", dt=np.pi / 2000, t_end=np.pi / 2, check_stability=False)
     np.testing.assert_allclose(tr.x[-1, 0], [-0.3, 0.0], atol=1e-9)
 
 

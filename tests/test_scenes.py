@@ -222,7 +222,8 @@ def test_duplicate_springs_in_the_builder():
     b.add_spring(0, 1, 10.0)
     with pytest.raises(SceneError, match=r"spring 1 \(\[1, 0\]\) joins the same two particles as spring 0"):
         b.add_spring(1, 0, 10.0)
-    with pytest.raises(SceneError, match=r"spring 2 \(\[2, 1\]\) joins the same two particles as spring 1 \(\[1, 2\]\)"):
+    with pytest.raises(SceneError, match=r"spring 2 \(\[2, 1\]\) joins the same two particles as "
+                                         r"spring 1 \(\[1, 2\]\)"):
         b.add_springs([[1, 2], [2, 1]], 5.0)
     assert b.build().springs().springs.tolist() == [[0, 1]]  # nothing half-added
 
@@ -239,7 +240,8 @@ def test_merged_duplicates_exert_the_force_of_both():
     assert q == 0 and len(merged.springs) == 1
     two = Springs([[0, 1], [1, 0]], [30.0, 70.0], [0.5, 1.5], [0.2, 0.1], 2)
     np.testing.assert_allclose(merged.force(x, v), two.force(x, v), rtol=1e-13, atol=1e-13)
-    np.testing.assert_allclose(merged.jacobians(x, v)[0].toarray(), two.jacobians(x, v)[0].toarray(), atol=1e-12)
+    np.testing.assert_allclose(merged.jacobians(x, v)[0].toarray(), two.jacobians(x, v)[0].toarray(),
+                               atol=1e-12)
 
 
 def test_duplicate_springs_merge_in_toml(tmp_path):

@@ -16,5 +16,5 @@ from mslab.effects.springs import Springs
 
 discover()
 
-__all__ = ["Anchors", "BuildContext", "Damping", "Effect", "Gravity", "Key", "PenaltyCollider", "Plane", "Sphere",
-           "Springs", "discover", "down", "effect_classes", "get_effect", "register"]
+__all__ = ["Anchors", "BuildContext", "Damping", "Effect", "Gravity", "Key", "PenaltyCollider", "Plane",
+           "Sphere", "Springs", "discover", "down", "effect_classes", "get_effect", "register"]

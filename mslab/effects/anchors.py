@@ -82,7 +82,10 @@ class Anchors(Effect):
 
     @staticmethod
     def add_anchors(builder, particles, stiffness, points=None) -> None:
-        """Pull ``particles`` towards ``points`` (default: where they are now) with springs of ``stiffness``."""
+        """Pull ``particles`` towards ``points`` (default: where they are now) by springs of ``stiffness``.
+
+        ``stiffness``: one number, or one per particle; ``points``: one vector per particle.
+        """
         builder.add_effect(Anchors, particles=particles, stiffness=stiffness, points=points)
 
     @classmethod

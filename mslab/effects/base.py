@@ -157,7 +157,8 @@ class Effect:
         ``prefix`` starts every error key (``colliders[0].``); ``body`` describes the body
         of a ``per_body`` section (first particle, count, generator).
         """
-        values = builder.check_effect(cls, {k: v for k, v in raw.items() if k != "type" or not cls.many}, prefix)
+        table = {k: v for k, v in raw.items() if k != "type" or not cls.many}
+        values = builder.check_effect(cls, table, prefix)
         cls.add(builder, values, prefix)
 
     @classmethod

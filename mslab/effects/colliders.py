@@ -234,7 +234,8 @@ class Sphere(PenaltyCollider):
 
     @classmethod
     def example(cls, dim: int) -> dict:
-        return {"center": [0.1] * dim, "radius": 1.0, "stiffness": 300.0, "friction": 0.5, "slip_velocity": 0.2}
+        return {"center": [0.1] * dim, "radius": 1.0, "stiffness": 300.0, "friction": 0.5,
+                "slip_velocity": 0.2}
 
     def __repr__(self):
         return f"Sphere(center={self.center.tolist()}, radius={self.radius}, stiffness={self.stiffness})"

@@ -53,7 +53,8 @@ class Gravity(Effect):
     section = "gravity"
     keys = (
         Key("g", "number|vector", unit="m/s^2",
-            doc="a number pulls down (-y in 2D, -z in 3D, -x in 1D) with that strength; a vector is g itself"),
+            doc="a number pulls down (-y in 2D, -z in 3D, -x in 1D) with that strength; "
+                "a vector is g itself"),
     )
     builder_methods = ("add_gravity",)
     unique = True

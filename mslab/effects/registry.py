@@ -32,7 +32,8 @@ def register(cls: type[Effect]) -> type[Effect]:
             raise ValueError(f"{cls.__name__}: builder method '{method}' is not defined on the class")
         other = builder_method(method, rescan=False)
         if other is not None and other[0].name != cls.name:
-            raise ValueError(f"{cls.__name__}: builder method '{method}' is already provided by {other[0].__name__}")
+            raise ValueError(f"{cls.__name__}: builder method '{method}' is already provided by "
+                             f"{other[0].__name__}")
     _registry[cls.name] = cls
     return cls
 

@@ -154,7 +154,8 @@ def _plain(value):
 
 
 def _is_number(value) -> bool:
-    return isinstance(value, int | float | np.integer | np.floating) and not isinstance(value, bool | np.bool_)
+    numeric = isinstance(value, int | float | np.integer | np.floating)
+    return numeric and not isinstance(value, bool | np.bool_)
 
 
 def number(value, name: str, low: float | None = None, strict: bool = False) -> float:
@@ -185,7 +186,8 @@ def string(value, name: str, choices: Iterable[str] | None = None) -> str:
     if choices is not None:
         choices = tuple(choices)
         if value not in choices:
-            raise SceneError(name, f"unknown value '{value}'{suggest(value, choices)}; valid: {', '.join(choices)}")
+            raise SceneError(name, f"unknown value '{value}'{suggest(value, choices)}; "
+                             f"valid: {', '.join(choices)}")
     return value
 
 
@@ -262,7 +264,8 @@ def check_keys(table: Mapping, valid: Iterable[str], prefix: str = "", what: str
     valid = tuple(valid)
     for k in table:
         if k not in valid:
-            raise SceneError(f"{prefix}{k}", f"unknown {what}{suggest(k, valid)}; valid {what}s: {', '.join(valid)}")
+            raise SceneError(f"{prefix}{k}", f"unknown {what}{suggest(k, valid)}; "
+                             f"valid {what}s: {', '.join(valid)}")
 
 
 def check_value(key: Key, value, name: str, dim: int, n: int, sizes: Mapping[str, int]) -> Any:

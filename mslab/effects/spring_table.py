@@ -60,7 +60,8 @@ class SpringTable:
             if zero.size:
                 i, j = pairs[zero[0]]
                 raise SceneError(f"{where}rest_length", f"spring [{i}, {j}] has zero length in the initial "
-                                 "positions, so its rest length cannot be taken from them; give rest_length explicitly")
+                                 "positions, so its rest length cannot be taken from them; "
+                                 "give rest_length explicitly")
             rest = lengths
         rest = np.asarray(rest, dtype=float)
         if rest.ndim == 0:
@@ -82,8 +83,10 @@ class SpringTable:
             s, q = clash
             self._append(pairs[: s + 1], values, rest[: s + 1], kind)  # so that labels can name both
             first = self.label(q)
-            second = f"[{pairs[s, 0] - offset}, {pairs[s, 1] - offset}]" if explicit else self.label(start + s)
-            del self.i[start:], self.j[start:], self.k[start:], self.rest[start:], self.c[start:], self.kind[start:]
+            second = (f"[{pairs[s, 0] - offset}, {pairs[s, 1] - offset}]" if explicit
+                      else self.label(start + s))
+            for column in (self.i, self.j, self.k, self.rest, self.c, self.kind):
+                del column[start:]
             self._batches.pop()
             key = f"{where}pairs[{s}]" if explicit else where.rstrip(".")
             raise SceneError(key, f"{second} joins the same two particles as {first}; remove one, or set "

@@ -123,18 +123,22 @@ class Springs(Effect):
     kinds = SPRING_KINDS
     keys = (
         Key("pairs", "pairs", default=None, default_doc="from the generator",
-            doc="which particles the springs join (indices within the body); required with explicit positions"),
+            doc="which particles the springs join (indices within the body); "
+                "required with explicit positions"),
         Key("stiffness", low=0.0, unit="N/m", doc="Hooke stiffness k"),
         Key("damping", default=0.0, low=0.0, unit="N s/m", doc="damping c along the spring"),
         Key("rest_length", "numbers", default=None, low=0.0, unit="m", per="pairs",
-            default_doc="the initial length", doc="length at which a spring is relaxed (one, or one per spring)"),
+            default_doc="the initial length",
+            doc="length at which a spring is relaxed (one, or one per spring)"),
         Key("duplicates", "string", default="error", choices=("error", "merge"),
-            doc='a pair joined twice is an error; "merge" makes it one spring with the summed stiffness and damping'),
+            doc='a pair joined twice is an error; "merge" makes it one spring with the summed '
+                "stiffness and damping"),
     )
     builder_methods = ("add_springs", "add_spring")
     order = 10
     internal = True
-    summary = "Hooke springs with damping along each spring; one table per kind (`structural`, `shear`, `bend`)"
+    summary = ("Hooke springs with damping along each spring; one table per kind "
+               "(`structural`, `shear`, `bend`)")
     kernel = staticmethod(spring_kernel)
 
     dissipative = False
@@ -256,8 +260,9 @@ class Springs(Effect):
         A pair joined twice (in either order) is an error unless ``duplicates="merge"``,
         which makes it one spring with the summed stiffness and damping.
         """
-        values = builder.check_effect(Springs, {"pairs": pairs, "stiffness": stiffness, "rest_length": rest_length,
-                                                "damping": damping, "duplicates": duplicates}, "springs.")
+        raw = {"pairs": pairs, "stiffness": stiffness, "rest_length": rest_length, "damping": damping,
+               "duplicates": duplicates}
+        values = builder.check_effect(Springs, raw, "springs.")
         if values["pairs"] is None:
             raise builder.error("springs.pairs", "missing: a list of [i, j] index pairs")
         return Springs._table(builder).add(values, builder.positions(), kind, "springs.", explicit=False)
@@ -265,8 +270,12 @@ class Springs(Effect):
     @staticmethod
     def add_spring(builder, i: int, j: int, stiffness: float, rest_length: float | None = None,
                    damping: float = 0.0, kind: str = "structural", duplicates: str = "error") -> int:
-        """Spring between particles i and j; ``rest_length=None`` takes the current length. Returns its index."""
-        return int(Springs.add_springs(builder, [[i, j]], stiffness, rest_length, damping, kind, duplicates)[0])
+        """Spring between particles i and j; ``rest_length=None`` takes the current length.
+
+        Returns the spring's index (see :meth:`add_springs` for ``duplicates``).
+        """
+        added = Springs.add_springs(builder, [[i, j]], stiffness, rest_length, damping, kind, duplicates)
+        return int(added[0])
 
     @staticmethod
     def _table(builder) -> SpringTable:
@@ -291,7 +300,8 @@ class Springs(Effect):
                                         "as pairs = [[i, j], ...]")
                 values["pairs"] = body.generated_pairs(kind)
                 if values["pairs"].shape[0] == 0:
-                    raise builder.error(f"springs.{kind}", f"generator '{body.generator}' has no {kind} springs")
+                    raise builder.error(f"springs.{kind}",
+                                        f"generator '{body.generator}' has no {kind} springs")
             values["pairs"] = values["pairs"] + body.first
             cls._table(builder).add(values, builder.positions(), kind, where, explicit, body.first)
 

@@ -16,7 +16,14 @@ import numpy as np
 from mslab.effects.schema import index, number, numbers, string, vector, vectors
 from mslab.errors import SceneError
 from mslab.scenes.builder import SceneBuilder
-from mslab.scenes.generators import GENERATORS, PIN_SETS, generated_positions, generator_shape, grid_springs, pin_set
+from mslab.scenes.generators import (
+    GENERATORS,
+    PIN_SETS,
+    generated_positions,
+    generator_shape,
+    grid_springs,
+    pin_set,
+)
 
 #: keys every body takes, with or without a generator
 COMMON_KEYS = ("generator", "positions", "mass", "total_mass", "pinned", "velocity", "velocities", "origin")
@@ -96,7 +103,8 @@ def add_body(builder: SceneBuilder, t: Mapping, p: str) -> Body:
             pinned[index(item, f"{p}pinned[{q}]", n)] = True
 
     if "velocity" in t and "velocities" in t:
-        raise SceneError(f"{p}velocities", "give either velocity (one for all) or velocities (one per particle)")
+        raise SceneError(f"{p}velocities",
+                         "give either velocity (one for all) or velocities (one per particle)")
     if "velocities" in t:
         v = vectors(t["velocities"], f"{p}velocities", dim, n)
     elif "velocity" in t:

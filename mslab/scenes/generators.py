@@ -17,8 +17,8 @@ from mslab.errors import SceneError
 from mslab.scenes.builder import Scene, SceneBuilder
 from mslab.scenes.oscillator import oscillator, oscillator_solution
 
-__all__ = ["GENERATORS", "PIN_SETS", "chain", "cloth", "generated_positions", "generator_shape", "grid_springs",
-           "lattice", "oscillator", "oscillator_solution", "pin_set"]
+__all__ = ["GENERATORS", "PIN_SETS", "chain", "cloth", "generated_positions", "generator_shape",
+           "grid_springs", "lattice", "oscillator", "oscillator_solution", "pin_set"]
 
 #: particle generators and the keys each one reads (besides the keys every body takes)
 GENERATORS: dict[str, tuple[str, ...]] = {
@@ -55,7 +55,8 @@ def generator_shape(generator: str, t: Mapping, prefix: str, dim: int) -> dict:
             raise SceneError(f"{prefix}generator", f"'lattice' needs dim = 3, got dim = {dim}")
         n = t.get("n", [4, 4, 4])
         if not isinstance(n, list) or len(n) != 3:
-            raise SceneError(f"{prefix}n", f"must be a list of 3 whole numbers [nx, ny, nz], got {describe(n)}")
+            raise SceneError(f"{prefix}n",
+                             f"must be a list of 3 whole numbers [nx, ny, nz], got {describe(n)}")
         shape = tuple(integer(k, f"{prefix}n[{i}]", low=2) for i, k in enumerate(n))
     length = number(t.get("length", 1.0), f"{prefix}length", low=0.0, strict=True)
     n_size = 2 if generator in ("grid", "cloth") else 3
@@ -99,7 +100,8 @@ def generated_positions(generator: str, shape: tuple[int, ...], dim: int, length
 def pin_set(generator: str, name: str, shape: tuple[int, ...]) -> list[int]:
     """Indices of a named pinned set of a generator (see :data:`PIN_SETS`)."""
     if name not in PIN_SETS[generator]:
-        raise ValueError(f"generator '{generator}' has no pinned set '{name}'; valid: {', '.join(PIN_SETS[generator])}")
+        raise ValueError(f"generator '{generator}' has no pinned set '{name}'; "
+                         f"valid: {', '.join(PIN_SETS[generator])}")
     index = np.arange(int(np.prod(shape))).reshape(shape)
     sets = {
         "first": lambda: [0],

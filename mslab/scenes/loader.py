@@ -92,9 +92,9 @@ def load_scene(name_or_path: str | Path, **overrides) -> Scene:
 
         def file_value(key: str, default: float) -> float:
             value = run.get(key)
-            ok = isinstance(value, int | float) and not isinstance(value, bool) and np.isfinite(value) and value > 0
-            return float(value) if ok else default
+            number = isinstance(value, int | float) and not isinstance(value, bool)
+            return float(value) if number and np.isfinite(value) and value > 0 else default
 
-        check_settings(given, source, dt=file_value("dt", Settings.dt), t_end=file_value("t_end", Settings.t_end),
-                       note=" (given as an override)")
+        check_settings(given, source, dt=file_value("dt", Settings.dt),
+                       t_end=file_value("t_end", Settings.t_end), note=" (given as an override)")
     return scene_from_doc(doc, source, default_name=path.stem, overrides=given)

@@ -52,7 +52,8 @@ def add_scene_effects(builder: SceneBuilder, doc: Mapping) -> None:
             continue
         what = name.rstrip("s") or name
         if not isinstance(raw, list):
-            raise SceneError(name, f"must be an array of tables: write [[{name}]] once per {what}, got {describe(raw)}")
+            raise SceneError(name, f"must be an array of tables: write [[{name}]] once per {what}, "
+                             f"got {describe(raw)}")
         kinds = {cls.kind: cls for cls in classes}
         for q, table in enumerate(raw):
             p = f"{name}[{q}]."

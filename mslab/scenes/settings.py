@@ -53,7 +53,8 @@ def check_settings(settings: Mapping, source: str | None = None, *, dt: float | 
     for key in ("dt", "t_end"):
         if key in settings:
             value = settings[key]
-            if isinstance(value, bool) or not isinstance(value, int | float) or not np.isfinite(value) or value <= 0:
+            number = isinstance(value, int | float) and not isinstance(value, bool)
+            if not number or not np.isfinite(value) or value <= 0:
                 fail(f"run.{key}", f"must be a finite number > 0, got {value!r}")
     if "save_every" in settings:
         value = settings["save_every"]
@@ -69,7 +70,7 @@ def check_settings(settings: Mapping, source: str | None = None, *, dt: float | 
 
 
 def canonical(settings: Mapping) -> dict:
-    """The settings with the method's canonical registry name (``symplectic-euler`` -> ``symplectic_euler``)."""
+    """The settings with the method's registry name (``symplectic-euler`` -> ``symplectic_euler``)."""
     out = dict(settings)
     if "method" in out:
         from mslab.integrators.base import get_method

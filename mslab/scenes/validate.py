@@ -60,8 +60,8 @@ def _build(doc: Mapping, default_name: str, overrides: Mapping) -> Scene:
     per_body = body_sections()
     if "bodies" in doc:
         if "particles" in doc or any(s in doc for s in per_body):
-            raise SceneError("bodies", f"use either [particles] + [{per_body[0]}.*] (one body) or [[bodies]], "
-                             "not both")
+            raise SceneError("bodies", f"use either [particles] + [{per_body[0]}.*] (one body) "
+                             "or [[bodies]], not both")
         if not isinstance(doc["bodies"], list) or not doc["bodies"]:
             raise SceneError("bodies", "must be an array of tables: write [[bodies]] once per body")
         for b, table in enumerate(doc["bodies"]):
