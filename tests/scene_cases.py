@@ -52,3 +52,27 @@ def bad_file(tmp_path, case: str):
     path = tmp_path / f"{case}.toml"
     path.write_text(BASE.replace(old, new, 1))
     return path, key, reason
+
+
+# ---- effects registry / issue 11 defects 9-10 (effects branch): keep this block together -------------
+BAD.update({
+    "duplicate_spring": (("pairs = [[0, 1]]", "pairs = [[0, 1], [0, 1]]"), "springs.structural.pairs[1]",
+                         "springs.structural.pairs[0] = [0, 1]"),
+    "duplicate_spring_reversed": (("pairs = [[0, 1]]", "pairs = [[0, 1], [1, 0]]"),
+                                  "springs.structural.pairs[1]",
+                                  "joins the same two particles as springs.structural.pairs[0]"),
+    "duplicate_spring_across_kinds": (("[run]", "[springs.shear]\npairs = [[1, 0]]\nstiffness = 5.0\n[run]"),
+                                      "springs.shear.pairs[0]", "springs.structural.pairs[0] = [0, 1]"),
+    "anchor_index": (("[run]", "[anchors]\nparticles = [0, 7]\nstiffness = 10.0\n[run]"),
+                     "anchors.particles[1]", "out of range"),
+    "anchor_points_count": (("[run]", "[anchors]\nparticles = [1]\nstiffness = 10.0\n"
+                             "points = [[0.0, 0.0], [1.0, 1.0]]\n[run]"), "anchors.points",
+                            "one entry per particle (1)"),
+    "anchor_missing_stiffness": (("[run]", "[anchors]\nparticles = [1]\n[run]"), "anchors.stiffness",
+                                 "missing"),
+    "collider_type": (("[run]", '[[colliders]]\ntype = "plain"\nnormal = [0.0, 1.0]\noffset = 0.0\n'
+                       "stiffness = 1.0\n[run]"), "colliders[0].type", "did you mean 'plane'"),
+    "plane_zero_normal": (("[run]", '[[colliders]]\ntype = "plane"\nnormal = [0.0, 0.0]\noffset = 0.0\n'
+                           "stiffness = 1.0\n[run]"), "colliders[0].normal", "zero vector"),
+    "gravity_vector_length": (("[run]", "[gravity]\ng = [0.0, 0.0, -9.81]\n[run]"), "gravity.g", "2 numbers"),
+})

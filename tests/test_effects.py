@@ -1,11 +1,21 @@
-"""Effects: force = -grad(energy), Jacobians = finite differences, momentum, power."""
+"""Effects: force = -grad(energy), Jacobians = finite differences, momentum, power; for every
+registered effect: TOML round trip, compiled kernel = numpy, docs table; the docs' example effect."""
+
+import re
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mslab.effects import Damping, Gravity, Plane, Sphere, Springs
+import mslab
+from mslab.effects import Damping, Gravity, Plane, Sphere, Springs, effect_classes, registry
+from mslab.effects import docs as effect_docs
+from mslab.errors import SceneError
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def num_grad(fun, x, eps=1e-6):
@@ -158,3 +168,203 @@ def test_random_spring_networks(data):
     assert s.velocity_dependent == damped
     np.testing.assert_allclose(s.force(x, v).sum(axis=0), 0.0, atol=1e-9)
     check_effect(s, x, v, rtol=1e-4, atol=1e-5)
+
+
+# ---- registry-wide contract: every registered effect, from its example section ---------------------
+CLASSES = [cls for cls in effect_classes() if cls.section is not None]
+DIMS = (1, 2, 3)
+SEEDS = (3, 11)
+
+
+def toml_text(doc: dict) -> str:
+    """A small TOML writer for scene documents (tables, arrays of tables, numbers, strings, lists)."""
+    def value(v):
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, str):
+            return f'"{v}"'
+        if isinstance(v, list | tuple | np.ndarray):
+            return "[" + ", ".join(value(u) for u in v) + "]"
+        return repr(float(v)) if isinstance(v, float | np.floating) else str(int(v))
+
+    lines = []
+
+    def table(path, t):
+        scalars = {k: v for k, v in t.items() if not isinstance(v, dict) and not _tables(v)}
+        lines.extend(f"{k} = {value(v)}" for k, v in scalars.items())
+        for k, v in t.items():
+            if isinstance(v, dict):
+                lines.append(f"[{path}{k}]")
+                table(f"{path}{k}.", v)
+            elif _tables(v):
+                for item in v:
+                    lines.append(f"[[{path}{k}]]")
+                    table(f"{path}{k}.", item)
+
+    table("", doc)
+    return "\n".join(lines) + "\n"
+
+
+def _tables(v) -> bool:
+    return isinstance(v, list) and bool(v) and all(isinstance(u, dict) for u in v)
+
+
+def random_particles(dim: int, seed: int):
+    rng = np.random.default_rng(seed)
+    x = rng.uniform(-1.0, 1.0, size=(6, dim))
+    mass = rng.uniform(0.5, 2.0, size=6)
+    return x, mass
+
+
+def built_effect(cls, dim: int, seed: int):
+    """The effect made by the builder method from ``example(dim)``, with random x, v."""
+    x, mass = random_particles(dim, seed)
+    b = mslab.SceneBuilder(dim)
+    for xi, m in zip(x, mass, strict=True):
+        b.add_particle(xi, mass=float(m))
+    getattr(b, cls.builder_methods[0])(**cls.example(dim))
+    scene = b.build()
+    effects = [e for e in scene.system.effects if type(e) is cls]
+    assert len(effects) == 1, f"{cls.name}: example built {len(effects)} effects"
+    v = np.random.default_rng(seed + 1).normal(size=x.shape)
+    return effects[0], x, v, scene
+
+
+def effect_cases():
+    return [pytest.param(cls, dim, seed, id=f"{cls.name}-{dim}d-{seed}") for cls in CLASSES for dim in DIMS
+            for seed in SEEDS]
+
+
+@pytest.mark.parametrize("cls,dim,seed", effect_cases())
+def test_registered_effect_contract(cls, dim, seed):
+    """force = -grad U, power = work of the velocity terms >= 0, Jacobians = finite differences, momentum."""
+    effect, x, v, _ = built_effect(cls, dim, seed)
+    check_effect(effect, x, v, conservative=effect.conservative)
+    if not effect.dissipative:
+        assert effect.power(x, v) == 0.0
+    if cls.internal:
+        np.testing.assert_allclose(effect.force(x, v).sum(axis=0), 0.0, atol=1e-12)
+
+
+@pytest.mark.parametrize("cls", CLASSES, ids=[c.name for c in CLASSES])
+@pytest.mark.parametrize("dim", DIMS)
+def test_toml_round_trip(tmp_path, cls, dim):
+    """The example section in a scene file builds the same effect as the builder method."""
+    effect, x, v, scene = built_effect(cls, dim, 5)
+    x0, mass = random_particles(dim, 5)
+    doc = {"scene": {"dim": dim}, "particles": {"positions": x0.tolist(), "mass": mass.tolist()}}
+    doc.update(cls.toml_fragment(cls.example(dim)))
+    path = tmp_path / f"{cls.name}.toml"
+    path.write_text(toml_text(doc))
+    loaded = mslab.load_scene(path)
+    assert loaded.effects == scene.effects == [cls.name]
+    twin = loaded.system.effects[0]
+    np.testing.assert_array_equal(twin.force(x, v), effect.force(x, v))
+    assert twin.energy(x) == effect.energy(x) and twin.power(x, v) == effect.power(x, v)
+    for a, b in zip(twin.jacobians(x, v), effect.jacobians(x, v), strict=True):
+        assert (a is None) == (b is None)
+        if a is not None:
+            np.testing.assert_array_equal(a.toarray(), b.toarray())
+
+
+KERNEL_CLASSES = [cls for cls in CLASSES if cls.kernel is not None]
+
+
+@pytest.mark.parametrize("cls", KERNEL_CLASSES, ids=[c.name for c in KERNEL_CLASSES])
+@pytest.mark.parametrize("dim", DIMS)
+def test_kernel_equals_numpy(cls, dim):
+    numba = pytest.importorskip("numba")
+    kernel = numba.njit(cache=False)(cls.kernel)
+    for seed in SEEDS:
+        effect, x, v, _ = built_effect(cls, dim, seed)
+        params = effect.kernel_params()
+        for p in params:
+            if isinstance(p, np.ndarray):
+                assert p.dtype in (np.float64, np.int64) and p.flags.c_contiguous, (cls.name, p.dtype)
+            else:
+                assert isinstance(p, int | float) and not isinstance(p, bool)
+        f = np.zeros_like(x)
+        power = kernel(x, v, f, *params)
+        f_ref, p_ref = effect.force_and_power(x, v)
+        scale = max(1.0, float(np.max(np.abs(f_ref))))
+        assert np.max(np.abs(f - f_ref)) <= 1e-12 * scale
+        assert abs(power - p_ref) <= 1e-12 * max(1.0, abs(p_ref))
+
+
+def test_springs_kernel_zero_length_and_undamped():
+    numba = pytest.importorskip("numba")
+    kernel = numba.njit(cache=False)(Springs.kernel)
+    rng = np.random.default_rng(2)
+    for dim in DIMS:
+        for damped in (False, True):
+            x, v = rng.normal(size=(8, dim)), rng.normal(size=(8, dim))
+            pairs = np.array([[0, 1], [1, 2], [2, 3], [4, 5], [5, 6], [6, 7], [0, 7]])
+            x[5] = x[4]  # a spring of zero length: no force, no NaN
+            s = Springs(pairs, rng.uniform(1, 100, 7), rng.uniform(0.1, 2, 7),
+                        rng.uniform(0, 3, 7) if damped else np.zeros(7), 8)
+            f = np.zeros_like(x)
+            p = kernel(x, v, f, *s.kernel_params())
+            f_ref, p_ref = s.force_and_power(x, v)
+            assert np.all(np.isfinite(f)) and np.max(np.abs(f - f_ref)) <= 1e-12 * np.max(np.abs(f_ref))
+            assert abs(p - p_ref) <= 1e-12 * max(1.0, p_ref) and (p > 0) == damped
+
+
+def test_docs_hold_the_generated_tables():
+    text = (ROOT / "docs" / "scenes.md").read_text()
+    assert effect_docs.effect_tables() in text, "regenerate: python -m mslab.effects.docs docs/scenes.md"
+
+
+def test_anchor_spring_is_hookes_law_to_a_fixed_point():
+    """f = -k (x - a) exactly, energy k |x - a|^2 / 2, and a bob on an anchor oscillates at sqrt(k/m)."""
+    b = mslab.SceneBuilder(2)
+    b.add_particle([0.3, 0.0], mass=2.0, velocity=[0.0, 0.0])
+    b.add_anchors([0], stiffness=8.0, points=[[0.0, 0.0]])
+    scene = b.build()
+    anchors = scene.system.effects[0]
+    x = np.array([[0.3, -0.4]])
+    np.testing.assert_allclose(anchors.force(x, x), [[-8.0 * 0.3, 8.0 * 0.4]])
+    assert anchors.energy(x) == pytest.approx(0.5 * 8.0 * 0.25)
+    # w = sqrt(k / m) = 2: half a period at t = pi / 2
+    tr = mslab.simulate(scene, "rk4", dt=np.pi / 2000, t_end=np.pi / 2, check_stability=False)
+    np.testing.assert_allclose(tr.x[-1, 0], [-0.3, 0.0], atol=1e-9)
+
+
+# ---- the example of docs/extending.md, copied into a folder the registry scans ----------------------
+def _doc_block(lang: str, section: str = "## Adding an effect") -> str:
+    text = (ROOT / "docs" / "extending.md").read_text()
+    text = text[text.index(section):]
+    return re.search(rf"```{lang}\n(.*?)```", text, re.S).group(1)
+
+
+def test_extending_example(tmp_path, monkeypatch):
+    import mslab.effects as package
+
+    folder = tmp_path / "more_effects"
+    folder.mkdir()
+    (folder / "loads.py").write_text(_doc_block("python"))
+    monkeypatch.setattr(package, "__path__", [*package.__path__, str(folder)])
+    try:
+        registry.discover()
+        cls = registry.get_effect("loads")
+        scene_file = tmp_path / "loaded_rope.toml"
+        scene_file.write_text(_doc_block("toml"))
+        scene = mslab.load_scene(scene_file)
+        assert scene.effects == ["springs", "loads"]
+        loads = scene.system.effects[1]
+        np.testing.assert_array_equal(loads.force(scene.state0.x, scene.state0.v)[4], [0.0, -2.0])
+        # the registry-wide checks, on the new effect
+        for dim in DIMS:
+            test_registered_effect_contract(cls, dim, 3)
+            test_toml_round_trip(tmp_path, cls, dim)
+            test_kernel_equals_numpy(cls, dim)
+        assert "`[loads]`" in effect_docs.effect_tables()
+        # a mistake in its section is one line naming the key
+        scene_file.write_text(_doc_block("toml").replace("force = [0.0, -2.0]", "force = [0.0, -2.0, 1.0]"))
+        with pytest.raises(SceneError, match=r"loaded_rope.toml: loads.force: must be a list of 2 numbers"):
+            mslab.load_scene(scene_file)
+        tr = mslab.simulate(scene, t_end=0.05)
+        assert tr.complete
+    finally:
+        registry._registry.pop("loads", None)
+        registry._imported.discard("loads")
+        sys.modules.pop("mslab.effects.loads", None)

@@ -10,7 +10,7 @@ import pytest
 import scipy.linalg
 
 import mslab
-from mslab.effects import Damping, Gravity, Plane, Sphere
+from mslab.effects import Damping, Gravity, Plane, Sphere, Springs
 from mslab.errors import ConvergenceError, InstabilityError, SceneError
 from mslab.scenes.loader import scene_path
 from tests.scene_cases import BAD, BASE, bad_file
@@ -187,3 +187,111 @@ def test_syntax_error_line_number(tmp_path):
 def test_missing_scene_suggests_name():
     with pytest.raises(SceneError, match="did you mean 'cloth'"):
         mslab.load_scene("clth")
+
+
+# ---- one rule for "down"; duplicates; folders; plural (effects branch) --------------------------------
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_down_is_one_rule(tmp_path, dim):
+    """g = 9.81 in TOML, add_gravity(9.81) and the chain factory all pull along -y (2D), -z (3D), -x (1D)."""
+    down = np.zeros(dim)
+    down[-1] = -9.81
+    b = mslab.SceneBuilder(dim)
+    b.add_particle(np.zeros(dim))
+    b.add_gravity(9.81)
+    path = tmp_path / "g.toml"
+    path.write_text(f"[scene]\ndim = {dim}\n[particles]\npositions = [{[0.0] * dim}]\n[gravity]\ng = 9.81\n")
+    chain = mslab.scenes.chain(3, dim=dim, gravity=9.81)
+    for scene in (b.build(), mslab.load_scene(path), chain):
+        g = next(e for e in scene.system.effects if e.name == "gravity")
+        np.testing.assert_array_equal(g.g, down)
+
+
+def test_builtin_scenes_fall_down():
+    """Every built-in scene with gravity pulls along -(last axis); the 3D cloth hangs along z."""
+    for name in mslab.scene_names():
+        scene = mslab.load_scene(name)
+        for e in scene.system.effects:
+            if e.name == "gravity":
+                assert e.g[-1] < 0 and np.all(e.g[:-1] == 0), name
+
+
+def test_duplicate_springs_in_the_builder():
+    b = mslab.SceneBuilder(2)
+    for x in ([0.0, 0.0], [1.0, 0.0], [1.0, 1.0]):
+        b.add_particle(x)
+    b.add_spring(0, 1, 10.0)
+    with pytest.raises(SceneError, match=r"spring 1 \(\[1, 0\]\) joins the same two particles as spring 0"):
+        b.add_spring(1, 0, 10.0)
+    with pytest.raises(SceneError, match=r"spring 2 \(\[2, 1\]\) joins the same two particles as "
+                                         r"spring 1 \(\[1, 2\]\)"):
+        b.add_springs([[1, 2], [2, 1]], 5.0)
+    assert b.build().springs().springs.tolist() == [[0, 1]]  # nothing half-added
+
+
+def test_merged_duplicates_exert_the_force_of_both():
+    """duplicates = "merge": one spring whose force equals the sum of the two (any rest lengths)."""
+    rng = np.random.default_rng(4)
+    x, v = rng.normal(size=(2, 3)), rng.normal(size=(2, 3))
+    b = mslab.SceneBuilder(3)
+    b.add_particles(x)
+    b.add_spring(0, 1, 30.0, rest_length=0.5, damping=0.2)
+    q = b.add_spring(1, 0, 70.0, rest_length=1.5, damping=0.1, duplicates="merge")
+    merged = b.build().springs()
+    assert q == 0 and len(merged.springs) == 1
+    two = Springs([[0, 1], [1, 0]], [30.0, 70.0], [0.5, 1.5], [0.2, 0.1], 2)
+    np.testing.assert_allclose(merged.force(x, v), two.force(x, v), rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(merged.jacobians(x, v)[0].toarray(), two.jacobians(x, v)[0].toarray(),
+                               atol=1e-12)
+
+
+def test_duplicate_springs_merge_in_toml(tmp_path):
+    path = tmp_path / "merge.toml"
+    path.write_text(BASE.replace("pairs = [[0, 1]]", 'pairs = [[0, 1], [1, 0]]\nduplicates = "merge"'))
+    scene = mslab.load_scene(path)
+    assert scene.springs().stiffness.tolist() == [200.0]
+
+
+def test_duplicates_within_a_body_name_body_indices(tmp_path):
+    text = """[scene]\ndim = 2\n[[bodies]]\npositions = [[0.0, 0.0], [1.0, 0.0]]\n[bodies.springs.structural]
+pairs = [[0, 1]]\nstiffness = 1.0\n[[bodies]]\npositions = [[0.0, 1.0], [1.0, 1.0]]
+[bodies.springs.structural]\npairs = [[0, 1], [1, 0]]\nstiffness = 1.0\n"""
+    path = tmp_path / "bodies.toml"
+    path.write_text(text)
+    with pytest.raises(SceneError) as info:
+        mslab.load_scene(path)
+    assert info.value.key == "bodies[1].springs.structural.pairs[1]"
+    assert "bodies[1].springs.structural.pairs[0] = [0, 1]" in info.value.reason
+
+
+def test_a_folder_is_not_a_scene(tmp_path):
+    with pytest.raises(SceneError, match="is a directory, not a scene file") as info:
+        mslab.load_scene(tmp_path)
+    assert "no built-in scene" not in str(info.value)
+
+
+def test_size_text_is_singular_for_one():
+    b = mslab.SceneBuilder(1)
+    b.add_particle([0.0])
+    b.add_particle([1.0])
+    b.add_spring(0, 1, 1.0)
+    assert b.build().size_text() == "2 particles, 1 spring"
+
+
+def test_anchors_from_toml_default_to_initial_positions(tmp_path):
+    path = tmp_path / "anchored.toml"
+    path.write_text(BASE + "[anchors]\nparticles = [1]\nstiffness = 50.0\n")
+    scene = mslab.load_scene(path)
+    anchors = next(e for e in scene.system.effects if e.name == "anchors")
+    np.testing.assert_array_equal(anchors.points, scene.state0.x[[1]])
+    assert scene.effects == ["springs", "anchors"]
+
+
+def test_generator_geometry_is_shared():
+    """The Python factories and the scene-file generators place and pin particles identically."""
+    from mslab.scenes.generators import generated_positions, pin_set
+
+    cloth = mslab.scenes.cloth(5, 4)
+    np.testing.assert_array_equal(cloth.state0.x, generated_positions("cloth", (4, 5), 3, size=(1.0, 1.0)))
+    assert np.flatnonzero(cloth.system.pinned).tolist() == pin_set("cloth", "top_corners", (4, 5))
+    chain = mslab.scenes.chain(4, dim=2, pin="both")
+    assert np.flatnonzero(chain.system.pinned).tolist() == [0, 3]

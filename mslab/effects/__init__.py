@@ -1,9 +1,20 @@
-"""Force terms ("effects") of a mass-spring system, one module each."""
+"""Force terms ("effects") of a mass-spring system, one module each, found on import.
 
-from mslab.effects.base import Effect
+Every module of this package that registers an :class:`Effect` subclass (see
+:mod:`mslab.effects.registry` and ``docs/extending.md``) is imported here, so the
+``SceneBuilder``, the scene-file loader, the validator and the docs table know it.
+"""
+
+from mslab.effects.anchors import Anchors
+from mslab.effects.base import BuildContext, Effect
 from mslab.effects.colliders import PenaltyCollider, Plane, Sphere
 from mslab.effects.damping import Damping
-from mslab.effects.gravity import Gravity
+from mslab.effects.gravity import Gravity, down
+from mslab.effects.registry import discover, effect_classes, get_effect, register
+from mslab.effects.schema import Key
 from mslab.effects.springs import Springs
 
-__all__ = ["Effect", "Gravity", "Springs", "Damping", "PenaltyCollider", "Plane", "Sphere"]
+discover()
+
+__all__ = ["Anchors", "BuildContext", "Damping", "Effect", "Gravity", "Key", "PenaltyCollider", "Plane",
+           "Sphere", "Springs", "discover", "down", "effect_classes", "get_effect", "register"]

@@ -1,33 +1,118 @@
 """The Effect protocol and helpers shared by all force terms.
 
-An *effect* is one force term of Newton's second law (seed eq. 3). It owns
+An *effect* is one force term of Newton's second law (seed eq. 3), defined in one module of
+``mslab/effects/`` that owns
 
 * ``force(x, v)`` — the force on every particle, shape ``(n_particles, dim)``;
 * ``energy(x)`` — its potential energy when it is conservative (else 0);
 * ``power(x, v)`` — the power it dissipates (>= 0) when it is dissipative (else 0);
 * ``jacobians(x, v)`` — ``(df/dx, df/dv)`` as ``scipy.sparse`` matrices of shape
   ``(n*dim, n*dim)`` (``None`` for a block that is identically zero), used by the
-  implicit methods and by the stability analysis.
+  implicit methods and by the stability analysis;
+* its scene-file section and the schema of its keys (:class:`~mslab.effects.schema.Key`),
+  its ``SceneBuilder`` method(s), how it is built (:meth:`Effect.create`);
+* optionally a compiled kernel: a plain module-level function in numba-compatible style,
+  ``kernel(x, v, f, *params) -> float``, that adds the force into ``f`` and returns the
+  dissipated power, with :meth:`Effect.kernel_params` giving ``params``.
 
 The flags ``velocity_dependent`` and ``dissipative`` let the :class:`~mslab.system.System`
-skip work that no effect of the scene asks for.
+skip work that no effect of the scene asks for. ``docs/extending.md`` shows a complete
+example; :mod:`mslab.effects.registry` finds the modules.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
 import numpy as np
 import scipy.sparse as sp
 
+from mslab.effects.schema import Key
+
+
+@dataclass(frozen=True)
+class BuildContext:
+    """What ``SceneBuilder.build`` knows when it creates the effects.
+
+    Attributes
+    ----------
+    x, v : ndarray, shape (n_particles, dim)
+        Initial positions and velocities.
+    mass : ndarray, shape (n_particles,)
+    pinned : ndarray of bool, shape (n_particles,)
+    dim : int
+    """
+
+    x: np.ndarray
+    v: np.ndarray
+    mass: np.ndarray
+    pinned: np.ndarray
+    dim: int
+
+    @property
+    def n_particles(self) -> int:
+        return self.x.shape[0]
+
 
 class Effect:
-    """Base class of a force term. Subclasses set the class flags and the methods."""
+    """Base class of a force term. Subclasses set the class attributes and the methods.
 
-    name: str = "effect"
+    Class attributes read by the registry, the builder, the loader and the docs
+    ---------------------------------------------------------------------------
+    name : str
+        The effect's name in ``scene.effects`` and in messages.
+    section : str or None
+        Its TOML section (``"gravity"`` for ``[gravity]``); None: not in scene files.
+    many : bool
+        The section is an array of tables (``[[colliders]]``) whose ``type`` key is
+        :attr:`kind`; each table adds one effect.
+    kind : str or None
+        The ``type`` value that selects this effect in a ``many`` section.
+    per_body : bool
+        The section belongs to a body (``[springs.<kind>]`` beside ``[particles]``, or
+        ``[bodies.springs.<kind>]``); indices count within the body.
+    kinds : tuple of str
+        Sub-table names of a ``per_body`` section (``structural``, ``shear``, ``bend``).
+    keys : tuple of Key
+        The schema: TOML keys, also the keyword arguments of the builder method.
+    builder_methods : tuple of str
+        Names of the ``SceneBuilder`` methods this effect provides: functions of the
+        same names on the class taking ``(builder, ...)`` (see :meth:`add`).
+    unique : bool
+        A scene holds at most one: adding it again replaces the first.
+    order : int
+        Position among the System's effects (summation order of forces).
+    internal : bool
+        Forces between particles only: they sum to zero (momentum is conserved).
+    summary : str
+        One line for the scene-format table.
+    kernel : callable or None
+        The compiled kernel (a plain function, set with ``kernel = staticmethod(f)``).
+    """
+
+    name: ClassVar[str] = "effect"
+    section: ClassVar[str | None] = None
+    many: ClassVar[bool] = False
+    kind: ClassVar[str | None] = None
+    per_body: ClassVar[bool] = False
+    kinds: ClassVar[tuple[str, ...]] = ()
+    keys: ClassVar[tuple[Key, ...]] = ()
+    builder_methods: ClassVar[tuple[str, ...]] = ()
+    unique: ClassVar[bool] = False
+    order: ClassVar[int] = 50
+    internal: ClassVar[bool] = False
+    summary: ClassVar[str] = ""
+    kernel: ClassVar[Callable[..., float] | None] = None
+
     velocity_dependent: bool = False
     dissipative: bool = False
     conservative: bool = True
 
+    # -- physics ---------------------------------------------------------------------------------
     def force(self, x: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Force on every particle, shape (n_particles, dim)."""
         raise NotImplementedError
 
     def force_and_power(self, x: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, float]:
@@ -36,13 +121,68 @@ class Effect:
         return f, (self.power(x, v) if self.dissipative else 0.0)
 
     def energy(self, x: np.ndarray) -> float:
+        """Potential energy (0 unless conservative)."""
         return 0.0
 
     def power(self, x: np.ndarray, v: np.ndarray) -> float:
+        """Dissipated power, >= 0 (0 unless dissipative)."""
         return 0.0
 
-    def jacobians(self, x: np.ndarray, v: np.ndarray):
+    def jacobians(self, x: np.ndarray, v: np.ndarray) -> tuple[sp.spmatrix | None, sp.spmatrix | None]:
+        """``(df/dx, df/dv)``, sparse (n*dim, n*dim); None for a block that is zero."""
         raise NotImplementedError
+
+    def kernel_params(self) -> tuple:
+        """Trailing arguments of :attr:`kernel`: contiguous float64/int64 arrays and scalars."""
+        raise NotImplementedError(f"effect '{self.name}' has no compiled kernel")
+
+    # -- scene description -----------------------------------------------------------------------
+    @classmethod
+    def add(cls, builder: Any, values: dict, prefix: str = "") -> None:
+        """Record checked ``values`` in the builder (default: one entry per call).
+
+        ``builder.entries(cls)`` is the list :meth:`build` receives; a ``unique`` effect
+        keeps only the last entry. Checks beyond the schema raise ``SceneError`` with
+        keys starting with ``prefix`` (the TOML location, or ``section.`` for the builder).
+        """
+        entries = builder.entries(cls)
+        if cls.unique:
+            entries.clear()
+        entries.append(values)
+
+    @classmethod
+    def from_toml(cls, builder: Any, raw: dict, prefix: str, body: Any = None) -> None:
+        """Add this effect from its raw TOML table (default: check it against :attr:`keys`, then :meth:`add`).
+
+        ``prefix`` starts every error key (``colliders[0].``); ``body`` describes the body
+        of a ``per_body`` section (first particle, count, generator).
+        """
+        table = {k: v for k, v in raw.items() if k != "type" or not cls.many}
+        values = builder.check_effect(cls, table, prefix)
+        cls.add(builder, values, prefix)
+
+    @classmethod
+    def build(cls, entries: list, ctx: BuildContext) -> list[Effect]:
+        """The effects of a scene from the builder's entries (default: :meth:`create` each)."""
+        made = (cls.create(values, ctx) for values in entries)
+        return [e for e in made if e is not None]
+
+    @classmethod
+    def create(cls, values: dict, ctx: BuildContext) -> Effect | None:
+        """One effect from one entry's values (None: nothing to build, e.g. zero drag)."""
+        raise NotImplementedError
+
+    @classmethod
+    def example(cls, dim: int) -> dict:
+        """Values of one section for the registry-wide tests: 6 particles in [-1, 1]^dim."""
+        raise NotImplementedError
+
+    @classmethod
+    def toml_fragment(cls, values: dict) -> dict:
+        """A scene-file fragment holding one section of ``values`` (for round-trip tests and docs)."""
+        if cls.many:
+            return {cls.section: [{"type": cls.kind, **values}]}
+        return {cls.section: dict(values)}
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}()"

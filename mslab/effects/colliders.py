@@ -15,7 +15,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from mslab.effects.base import Effect, block_diagonal
+from mslab.effects.base import BuildContext, Effect, block_diagonal
+from mslab.effects.registry import register
+from mslab.effects.schema import Key
+from mslab.errors import SceneError
+
+#: keys every penalty collider shares (after its geometry)
+PENALTY_KEYS = (
+    Key("stiffness", low=0.0, strict=True, unit="N/m", doc="penalty stiffness k"),
+    Key("friction", default=0.0, low=0.0, doc="friction coefficient mu"),
+    Key("slip_velocity", default=1e-3, low=0.0, strict=True, unit="m/s",
+        doc="below this sliding speed friction grows smoothly from 0 to mu times the normal force; "
+            "small values make friction stiff"),
+)
 
 
 class PenaltyCollider(Effect):
@@ -25,6 +37,10 @@ class PenaltyCollider(Effect):
     has shape (n,) (positive inside), ``normal`` (n, dim) and ``dnormal`` the
     derivative of the normal with respect to x, (n, dim, dim), or None if constant.
     """
+
+    section = "colliders"
+    many = True
+    order = 40
 
     def __init__(self, stiffness: float, friction: float = 0.0, slip_velocity: float = 1e-3):
         self.stiffness = float(stiffness)
@@ -105,6 +121,7 @@ class PenaltyCollider(Effect):
         return block_diagonal(jx, idx, nparticles), jv
 
 
+@register
 class Plane(PenaltyCollider):
     """Half-space ``n . x >= offset``; particles below are pushed back up.
 
@@ -119,6 +136,13 @@ class Plane(PenaltyCollider):
     """
 
     name = "plane"
+    kind = "plane"
+    keys = (
+        Key("normal", "vector", doc="the side particles stay on (need not be unit length)"),
+        Key("offset", doc="the plane is normal . x = offset (with the normal normalised)", unit="m"),
+    ) + PENALTY_KEYS
+    builder_methods = ("add_plane",)
+    summary = "penalty half-space with regularised Coulomb friction"
 
     def __init__(self, normal, offset: float, stiffness: float, friction: float = 0.0,
                  slip_velocity: float = 1e-3):
@@ -132,10 +156,36 @@ class Plane(PenaltyCollider):
         normal = np.broadcast_to(self.normal, x.shape)
         return depth, normal, None
 
+    @staticmethod
+    def add_plane(builder, normal, offset: float, stiffness: float, friction: float = 0.0,
+                  slip_velocity: float = 1e-3) -> None:
+        """Penalty half-space ``normal . x >= offset`` (``slip_velocity``: friction regularisation)."""
+        builder.add_effect(Plane, normal=normal, offset=offset, stiffness=stiffness, friction=friction,
+                           slip_velocity=slip_velocity)
+
+    @classmethod
+    def add(cls, builder, values: dict, prefix: str = "") -> None:
+        if not np.any(values["normal"]):
+            raise SceneError(f"{prefix}normal", "must not be the zero vector")
+        super().add(builder, values, prefix)
+
+    @classmethod
+    def create(cls, values: dict, ctx: BuildContext) -> Plane:
+        return cls(values["normal"], values["offset"], values["stiffness"], values["friction"],
+                   values["slip_velocity"])
+
+    @classmethod
+    def example(cls, dim: int) -> dict:
+        normal = [0.0] * dim
+        normal[-1] = 1.0
+        normal[0] = 0.3
+        return {"normal": normal, "offset": 0.1, "stiffness": 500.0, "friction": 0.4, "slip_velocity": 0.3}
+
     def __repr__(self):
         return f"Plane(normal={self.normal.tolist()}, offset={self.offset}, stiffness={self.stiffness})"
 
 
+@register
 class Sphere(PenaltyCollider):
     """Solid sphere (a disc in 2D): particles inside are pushed out radially.
 
@@ -146,6 +196,13 @@ class Sphere(PenaltyCollider):
     """
 
     name = "sphere"
+    kind = "sphere"
+    keys = (
+        Key("center", "vector", unit="m", doc="centre of the ball (a disc in 2D)"),
+        Key("radius", low=0.0, strict=True, unit="m", doc="radius of the ball"),
+    ) + PENALTY_KEYS
+    builder_methods = ("add_sphere",)
+    summary = "penalty ball (disc in 2D) with regularised Coulomb friction"
 
     def __init__(self, center, radius: float, stiffness: float, friction: float = 0.0,
                  slip_velocity: float = 1e-3):
@@ -162,6 +219,23 @@ class Sphere(PenaltyCollider):
         proj = np.eye(dim)[None] - normal[:, :, None] * normal[:, None, :]
         dnormal = proj / safe[:, None, None]
         return self.radius - r, normal, dnormal
+
+    @staticmethod
+    def add_sphere(builder, center, radius: float, stiffness: float, friction: float = 0.0,
+                   slip_velocity: float = 1e-3) -> None:
+        """Penalty sphere (disc in 2D); ``slip_velocity``: friction regularisation."""
+        builder.add_effect(Sphere, center=center, radius=radius, stiffness=stiffness, friction=friction,
+                           slip_velocity=slip_velocity)
+
+    @classmethod
+    def create(cls, values: dict, ctx: BuildContext) -> Sphere:
+        return cls(values["center"], values["radius"], values["stiffness"], values["friction"],
+                   values["slip_velocity"])
+
+    @classmethod
+    def example(cls, dim: int) -> dict:
+        return {"center": [0.1] * dim, "radius": 1.0, "stiffness": 300.0, "friction": 0.5,
+                "slip_velocity": 0.2}
 
     def __repr__(self):
         return f"Sphere(center={self.center.tolist()}, radius={self.radius}, stiffness={self.stiffness})"

@@ -5,9 +5,23 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from mslab.effects.base import Effect
+from mslab.effects.base import BuildContext, Effect
+from mslab.effects.registry import register
+from mslab.effects.schema import Key
 
 
+def damping_kernel(x, v, f, gamma):
+    """Compiled-style kernel: ``f -= gamma v``; returns the power ``gamma |v|^2``."""
+    n, dim = f.shape
+    power = 0.0
+    for p in range(n):
+        for c in range(dim):
+            f[p, c] -= gamma * v[p, c]
+            power += gamma * v[p, c] * v[p, c]
+    return power
+
+
+@register
 class Damping(Effect):
     """Viscous drag proportional to velocity.
 
@@ -22,6 +36,13 @@ class Damping(Effect):
     """
 
     name = "damping"
+    section = "damping"
+    keys = (Key("gamma", low=0.0, unit="kg/s", doc="drag coefficient: f = -gamma v; 0 builds nothing"),)
+    builder_methods = ("add_damping",)
+    unique = True
+    order = 30
+    summary = "viscous air drag `f = -gamma v` on every particle"
+    kernel = staticmethod(damping_kernel)
     velocity_dependent = True
     dissipative = True
     conservative = False
@@ -42,6 +63,23 @@ class Damping(Effect):
 
     def jacobians(self, x, v):
         return None, -self.gamma * sp.identity(self.n * self.dim, format="csr")
+
+    def kernel_params(self) -> tuple:
+        return (self.gamma,)
+
+    @staticmethod
+    def add_damping(builder, gamma: float) -> None:
+        """Viscous drag ``f = -gamma v`` on every particle (``gamma = 0``: none)."""
+        builder.add_effect(Damping, gamma=gamma)
+
+    @classmethod
+    def create(cls, values: dict, ctx: BuildContext) -> Damping | None:
+        gamma = values["gamma"]
+        return cls(gamma, ctx.n_particles, ctx.dim) if gamma > 0 else None
+
+    @classmethod
+    def example(cls, dim: int) -> dict:
+        return {"gamma": 0.7}
 
     def __repr__(self):
         return f"Damping(gamma={self.gamma})"

@@ -1,12 +1,42 @@
-"""Gravity: a constant acceleration g on every particle (seed section 2.1)."""
+"""Gravity: a constant acceleration g on every particle (seed section 2.1).
+
+"Down" has one rule everywhere: -y in 2D, -z in 3D (-x in 1D). A number ``g`` (TOML
+``g = 9.81`` or ``SceneBuilder.add_gravity(9.81)``) pulls down with that strength; a
+vector gives the acceleration itself.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 
-from mslab.effects.base import Effect
+from mslab.effects.base import BuildContext, Effect
+from mslab.effects.registry import register
+from mslab.effects.schema import Key
 
 
+def down(dim: int) -> np.ndarray:
+    """The unit vector pointing down: -y in 2D, -z in 3D, -x in 1D."""
+    e = np.zeros(dim)
+    e[dim - 1] = -1.0
+    return e
+
+
+def gravity_vector(g, dim: int) -> np.ndarray:
+    """A gravity vector from a number (strength, pointing :func:`down`) or a vector."""
+    arr = np.asarray(g, dtype=float)
+    return float(arr) * down(dim) if arr.ndim == 0 else arr.reshape(dim)
+
+
+def gravity_kernel(x, v, f, f_gravity):
+    """Compiled-style kernel: ``f += m g`` (``f_gravity`` precomputed, (n, dim)); no power."""
+    n, dim = f.shape
+    for p in range(n):
+        for c in range(dim):
+            f[p, c] += f_gravity[p, c]
+    return 0.0
+
+
+@register
 class Gravity(Effect):
     """Uniform gravity ``f_i = m_i g``.
 
@@ -20,11 +50,22 @@ class Gravity(Effect):
     """
 
     name = "gravity"
+    section = "gravity"
+    keys = (
+        Key("g", "number|vector", unit="m/s^2",
+            doc="a number pulls down (-y in 2D, -z in 3D, -x in 1D) with that strength; "
+                "a vector is g itself"),
+    )
+    builder_methods = ("add_gravity",)
+    unique = True
+    order = 20
+    summary = "uniform gravity `f = m g` on every particle"
+    kernel = staticmethod(gravity_kernel)
 
     def __init__(self, g, mass: np.ndarray):
         self.g = np.asarray(g, dtype=float)
         self.mass = np.asarray(mass, dtype=float)
-        self._f = self.mass[:, None] * self.g[None, :]
+        self._f = np.ascontiguousarray(self.mass[:, None] * self.g[None, :])
 
     def force(self, x, v):
         return self._f.copy()
@@ -34,6 +75,22 @@ class Gravity(Effect):
 
     def jacobians(self, x, v):
         return None, None
+
+    def kernel_params(self) -> tuple:
+        return (self._f,)
+
+    @staticmethod
+    def add_gravity(builder, g) -> None:
+        """Uniform gravity: a vector (``[0, -9.81]``) or a number pulling down (-y in 2D, -z in 3D)."""
+        builder.add_effect(Gravity, g=g)
+
+    @classmethod
+    def create(cls, values: dict, ctx: BuildContext) -> Gravity:
+        return cls(gravity_vector(values["g"], ctx.dim), ctx.mass)
+
+    @classmethod
+    def example(cls, dim: int) -> dict:
+        return {"g": 9.81}
 
     def __repr__(self):
         return f"Gravity(g={self.g.tolist()})"

@@ -1,12 +1,19 @@
-"""Hooke springs with optional damping along the spring (seed eqs. 1-2)."""
+"""Hooke springs with optional damping along the spring (seed eqs. 1-2).
+
+The numpy methods of :class:`Springs` are the reference; :func:`spring_kernel` is the same
+equations as a loop in numba-compatible style (compiled by ``mslab.fast``). Spring sets are
+recorded by :mod:`mslab.effects.spring_table` (duplicates, rest lengths, labels).
+"""
 
 from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
 
-from mslab import fast
-from mslab.effects.base import Effect
+from mslab.effects.base import BuildContext, Effect
+from mslab.effects.registry import register
+from mslab.effects.schema import Key, check_keys
+from mslab.effects.spring_table import SPRING_KINDS, SpringTable
 
 
 def scatter_pairs(f: np.ndarray, i: np.ndarray, j: np.ndarray, n: int) -> np.ndarray:
@@ -17,6 +24,72 @@ def scatter_pairs(f: np.ndarray, i: np.ndarray, j: np.ndarray, n: int) -> np.nda
     return out
 
 
+def spring_kernel(x, v, f, i, j, stiffness, rest_length, damping, damped):
+    """Add the spring forces to ``f`` (n_particles, dim) in place; return the dissipated power.
+
+    A loop over springs: the pair force ``f_q`` goes to ``+f[i]`` and ``-f[j]``;
+    ``damped`` (0 or 1) skips the velocity terms when no spring is damped. A spring of
+    zero length has ``u = 0`` and exerts ``-k d = 0`` (never NaN). For dim = 3, the common
+    case, the loop is written out with scalars so the compiler keeps them in registers.
+    """
+    dim = x.shape[1]
+    power = 0.0
+    if dim == 3:
+        for q in range(i.shape[0]):
+            a = i[q]
+            b = j[q]
+            dx = x[a, 0] - x[b, 0]
+            dy = x[a, 1] - x[b, 1]
+            dz = x[a, 2] - x[b, 2]
+            length = np.sqrt(dx * dx + dy * dy + dz * dz)
+            inv_l = 1.0 / length if length > 0.0 else 0.0
+            k = stiffness[q]
+            lu = rest_length[q] * inv_l
+            fx = -k * (dx - lu * dx)
+            fy = -k * (dy - lu * dy)
+            fz = -k * (dz - lu * dz)
+            if damped:
+                rate = (dx * inv_l * (v[a, 0] - v[b, 0]) + dy * inv_l * (v[a, 1] - v[b, 1])
+                        + dz * inv_l * (v[a, 2] - v[b, 2]))
+                cr = damping[q] * rate
+                power += cr * rate
+                fx -= cr * (dx * inv_l)
+                fy -= cr * (dy * inv_l)
+                fz -= cr * (dz * inv_l)
+            f[a, 0] += fx
+            f[a, 1] += fy
+            f[a, 2] += fz
+            f[b, 0] -= fx
+            f[b, 1] -= fy
+            f[b, 2] -= fz
+        return power
+    d = np.empty(dim)
+    for q in range(i.shape[0]):
+        a = i[q]
+        b = j[q]
+        length2 = 0.0
+        for c in range(dim):
+            d[c] = x[a, c] - x[b, c]
+            length2 += d[c] * d[c]
+        length = np.sqrt(length2)
+        inv_l = 1.0 / length if length > 0.0 else 0.0
+        k = stiffness[q]
+        lu = rest_length[q] * inv_l  # L u = (L / l) d
+        cr = 0.0
+        if damped:
+            rate = 0.0  # u . (v_i - v_j), the stretch rate
+            for c in range(dim):
+                rate += d[c] * inv_l * (v[a, c] - v[b, c])
+            cr = damping[q] * rate
+            power += cr * rate
+        for c in range(dim):
+            fc = -k * (d[c] - lu * d[c]) - cr * (d[c] * inv_l)
+            f[a, c] += fc
+            f[b, c] -= fc
+    return power
+
+
+@register
 class Springs(Effect):
     """A set of Hooke springs between particle pairs.
 
@@ -40,19 +113,45 @@ class Springs(Effect):
     springs : ndarray of int, shape (n_springs, 2)
     stiffness, rest_length, damping : ndarray, shape (n_springs,)
     n_particles : int
+    kind : ndarray of str, shape (n_springs,), optional
+        A label per spring (``structural``, ``shear``, ``bend`` ...).
     """
 
     name = "springs"
+    section = "springs"
+    per_body = True
+    kinds = SPRING_KINDS
+    keys = (
+        Key("pairs", "pairs", default=None, default_doc="from the generator",
+            doc="which particles the springs join (indices within the body); "
+                "required with explicit positions"),
+        Key("stiffness", low=0.0, unit="N/m", doc="Hooke stiffness k"),
+        Key("damping", default=0.0, low=0.0, unit="N s/m", doc="damping c along the spring"),
+        Key("rest_length", "numbers", default=None, low=0.0, unit="m", per="pairs",
+            default_doc="the initial length",
+            doc="length at which a spring is relaxed (one, or one per spring)"),
+        Key("duplicates", "string", default="error", choices=("error", "merge"),
+            doc='a pair joined twice is an error; "merge" makes it one spring with the summed '
+                "stiffness and damping"),
+    )
+    builder_methods = ("add_springs", "add_spring")
+    order = 10
+    internal = True
+    summary = ("Hooke springs with damping along each spring; one table per kind "
+               "(`structural`, `shear`, `bend`)")
+    kernel = staticmethod(spring_kernel)
+
     dissipative = False
     velocity_dependent = False
 
-    def __init__(self, springs, stiffness, rest_length, damping, n_particles: int):
+    def __init__(self, springs, stiffness, rest_length, damping, n_particles: int, kind=None):
         self.springs = np.asarray(springs, dtype=np.int64).reshape(-1, 2)
         self.i = np.ascontiguousarray(self.springs[:, 0])
         self.j = np.ascontiguousarray(self.springs[:, 1])
-        self.stiffness = np.asarray(stiffness, dtype=float)
-        self.rest_length = np.asarray(rest_length, dtype=float)
-        self.damping = np.asarray(damping, dtype=float)
+        self.stiffness = np.ascontiguousarray(stiffness, dtype=float)
+        self.rest_length = np.ascontiguousarray(rest_length, dtype=float)
+        self.damping = np.ascontiguousarray(damping, dtype=float)
+        self.kind = np.array(["structural"] * len(self.i) if kind is None else kind, dtype=str)
         self.n = int(n_particles)
         damped = bool(np.any(self.damping != 0.0))
         self.velocity_dependent = damped
@@ -60,6 +159,7 @@ class Springs(Effect):
         self.conservative = True  # the Hooke part has a potential; damping is booked as power
         self._csr = None  # Jacobian sparsity pattern, built on first use (see _assemble)
 
+    # -- physics ---------------------------------------------------------------------------------
     def _geometry(self, x):
         d = x[self.i] - x[self.j]
         length = np.sqrt(np.einsum("ij,ij->i", d, d))
@@ -77,23 +177,12 @@ class Springs(Effect):
         return f, float(np.sum(self.damping * rate * rate))
 
     def force(self, x, v):
-        if fast.use_numba():  # the same equations as a compiled loop (mslab/fast/kernels.py)
-            return self._fast_force(x, v)[0]
         f, _ = self._pair_force(x, v)
         return scatter_pairs(f, self.i, self.j, self.n)
 
     def force_and_power(self, x, v):
-        if fast.use_numba():
-            return self._fast_force(x, v)
         f, p = self._pair_force(x, v)
         return scatter_pairs(f, self.i, self.j, self.n), p
-
-    def _fast_force(self, x, v):
-        x = np.ascontiguousarray(x, dtype=float)
-        v = np.ascontiguousarray(v, dtype=float) if self.dissipative else x
-        f, p = fast.compiled().spring_force(x, v, self.i, self.j, self.stiffness, self.rest_length,
-                                           self.damping, self.dissipative)
-        return f, float(p)
 
     def power(self, x, v):
         return self._pair_force(x, v)[1]
@@ -157,6 +246,82 @@ class Springs(Effect):
         keys, slot = np.unique(rows * size + cols, return_inverse=True)
         indptr = np.searchsorted(keys // size, np.arange(size + 1)).astype(np.int32)
         return slot, (keys % size).astype(np.int32), indptr
+
+    def kernel_params(self) -> tuple:
+        return (self.i, self.j, self.stiffness, self.rest_length, self.damping, int(self.dissipative))
+
+    # -- scene description -----------------------------------------------------------------------
+    @staticmethod
+    def add_springs(builder, pairs, stiffness: float, rest_length=None, damping: float = 0.0,
+                    kind: str = "structural", duplicates: str = "error") -> np.ndarray:
+        """Springs for every ``(i, j)`` in ``pairs`` with the same parameters; returns their indices.
+
+        ``rest_length``: one number, one per pair, or None (each spring's current length).
+        A pair joined twice (in either order) is an error unless ``duplicates="merge"``,
+        which makes it one spring with the summed stiffness and damping.
+        """
+        raw = {"pairs": pairs, "stiffness": stiffness, "rest_length": rest_length, "damping": damping,
+               "duplicates": duplicates}
+        values = builder.check_effect(Springs, raw, "springs.")
+        if values["pairs"] is None:
+            raise builder.error("springs.pairs", "missing: a list of [i, j] index pairs")
+        return Springs._table(builder).add(values, builder.positions(), kind, "springs.", explicit=False)
+
+    @staticmethod
+    def add_spring(builder, i: int, j: int, stiffness: float, rest_length: float | None = None,
+                   damping: float = 0.0, kind: str = "structural", duplicates: str = "error") -> int:
+        """Spring between particles i and j; ``rest_length=None`` takes the current length.
+
+        Returns the spring's index (see :meth:`add_springs` for ``duplicates``).
+        """
+        added = Springs.add_springs(builder, [[i, j]], stiffness, rest_length, damping, kind, duplicates)
+        return int(added[0])
+
+    @staticmethod
+    def _table(builder) -> SpringTable:
+        entries = builder.entries(Springs)
+        if not entries:
+            entries.append(SpringTable())
+        return entries[0]
+
+    @classmethod
+    def from_toml(cls, builder, raw, prefix: str, body=None) -> None:
+        """``[springs.<kind>]`` tables of one body: pairs within the body, or from its generator."""
+        table = builder.check_table(raw, prefix.rstrip("."))
+        check_keys(table, cls.kinds, prefix, "spring kind")
+        for kind, sub in table.items():
+            where = f"{prefix}{kind}."
+            sub = builder.check_table(sub, where.rstrip("."))
+            values = builder.check_effect(cls, sub, where, n=body.n)
+            explicit = values["pairs"] is not None
+            if not explicit:
+                if body.generator is None:
+                    raise builder.error(f"{where}pairs", "missing: with explicit positions, list the springs "
+                                        "as pairs = [[i, j], ...]")
+                values["pairs"] = body.generated_pairs(kind)
+                if values["pairs"].shape[0] == 0:
+                    raise builder.error(f"springs.{kind}",
+                                        f"generator '{body.generator}' has no {kind} springs")
+            values["pairs"] = values["pairs"] + body.first
+            cls._table(builder).add(values, builder.positions(), kind, where, explicit, body.first)
+
+    @classmethod
+    def build(cls, entries: list, ctx: BuildContext) -> list[Effect]:
+        table = entries[0]
+        if not table.i:
+            return []
+        pairs = np.stack([np.array(table.i, dtype=np.int64), np.array(table.j, dtype=np.int64)], axis=1)
+        return [cls(pairs, np.array(table.k), np.array(table.rest), np.array(table.c), ctx.n_particles,
+                    np.array(table.kind, dtype=str))]
+
+    @classmethod
+    def example(cls, dim: int) -> dict:
+        return {"pairs": [[0, 1], [1, 2], [2, 3], [3, 4], [4, 5], [0, 5], [1, 4]], "stiffness": 40.0,
+                "damping": 0.5, "rest_length": 0.7}
+
+    @classmethod
+    def toml_fragment(cls, values: dict) -> dict:
+        return {"springs": {"structural": values}}
 
     def __repr__(self):
         return f"Springs(n_springs={len(self.springs)})"

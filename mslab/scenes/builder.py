@@ -1,20 +1,31 @@
 """Programmatic scenes: ``SceneBuilder`` collects particles and effects, ``build()`` freezes them.
 
 Only the effects added to the builder exist in the built :class:`~mslab.system.System`:
-a scene without colliders never creates (or evaluates) collider code.
+a scene without colliders never creates (or evaluates) collider code. The effect methods
+(``add_spring``, ``add_gravity``, ``add_plane`` ...) are provided by the effect modules and
+found through the effect registry (:mod:`mslab.effects.registry`); the TOML loader adds
+effects through the same methods.
 """
 
 from __future__ import annotations
 
+import types
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from mslab.effects import Damping, Gravity, Plane, Sphere, Springs
+from mslab.effects import Springs, registry
+from mslab.effects.base import BuildContext, Effect
+from mslab.effects.schema import check_values, describe
 from mslab.errors import SceneError
 from mslab.state import State
 from mslab.system import System
+
+
+def plural(n: int, word: str) -> str:
+    """``"1 spring"``, ``"2 springs"``."""
+    return f"{n} {word}{'' if n == 1 else 's'}"
 
 
 @dataclass(frozen=True)
@@ -73,6 +84,10 @@ class Scene:
                 return e
         return None
 
+    def size_text(self) -> str:
+        """``"2 particles, 1 spring"``: the scene's size in words, singular where it is one."""
+        return f"{plural(self.n_particles, 'particle')}, {plural(len(self.spring_kind), 'spring')}"
+
     def summary(self) -> dict:
         """Size, effects and default run settings, as plain data (for tables and JSON)."""
         s = self.settings
@@ -89,6 +104,10 @@ class Scene:
 class SceneBuilder:
     """Collects particles, springs and effects; ``build()`` returns a :class:`Scene`.
 
+    Effect methods (``add_spring``, ``add_springs``, ``add_gravity``, ``add_damping``,
+    ``add_plane``, ``add_sphere``, ``add_anchors`` and those of any effect module added
+    to ``mslab/effects/``) come from the effect registry.
+
     Parameters
     ----------
     dim : int
@@ -103,14 +122,7 @@ class SceneBuilder:
         self._v: list[np.ndarray] = []
         self._m: list[float] = []
         self._pinned: list[bool] = []
-        self._springs: list[tuple[int, int]] = []
-        self._k: list[float] = []
-        self._rest: list[float | None] = []
-        self._c: list[float] = []
-        self._kind: list[str] = []
-        self._gravity = None
-        self._gamma = None
-        self._colliders: list[tuple] = []
+        self._entries: dict[type[Effect], list] = {}
         self.settings = Settings()
 
     # -- particles ----------------------------------------------------------------
@@ -154,73 +166,46 @@ class SceneBuilder:
             raise SceneError(key, f"particle index {i!r} out of range 0..{n - 1}")
         return int(i)
 
-    # -- springs ------------------------------------------------------------------
-    def add_spring(self, i: int, j: int, stiffness: float, rest_length: float | None = None,
-                   damping: float = 0.0, kind: str = "structural") -> int:
-        """Spring between particles i and j; ``rest_length=None`` takes the current length."""
-        i = self._check_index(i, "springs")
-        j = self._check_index(j, "springs")
-        if i == j:
-            raise SceneError("springs", f"a spring needs two different particles, got ({i}, {j})")
-        for value, key in ((stiffness, "stiffness"), (damping, "damping")):
-            if not np.isfinite(value) or value < 0:
-                raise SceneError(key, f"must be a finite number >= 0, got {value!r}")
-        if rest_length is not None and (not np.isfinite(rest_length) or rest_length < 0):
-            raise SceneError("rest_length", f"must be a finite number >= 0, got {rest_length!r}")
-        if rest_length is None and np.linalg.norm(self._x[i] - self._x[j]) == 0.0:
-            raise SceneError("rest_length", f"spring ({i}, {j}) has zero length in the initial positions; "
-                             "give its rest length explicitly")
-        self._springs.append((i, j))
-        self._k.append(float(stiffness))
-        self._rest.append(rest_length)
-        self._c.append(float(damping))
-        self._kind.append(kind)
-        return len(self._springs) - 1
+    # -- effects (the methods come from the effect registry) ------------------------
+    def __getattr__(self, name: str):
+        if name.startswith("_"):
+            raise AttributeError(name)
+        found = registry.builder_method(name)
+        if found is None:
+            raise AttributeError(f"'SceneBuilder' object has no attribute '{name}'; effect methods: "
+                                 f"{', '.join(registry.builder_method_names())}")
+        return types.MethodType(found[1], self)
 
-    def add_springs(self, pairs, stiffness: float, rest_length=None, damping: float = 0.0,
-                    kind: str = "structural") -> None:
-        """Add springs for every ``(i, j)`` in ``pairs`` with the same parameters."""
-        for i, j in np.asarray(pairs, dtype=np.int64).reshape(-1, 2):
-            self.add_spring(int(i), int(j), stiffness, rest_length, damping, kind)
+    def __dir__(self) -> list[str]:
+        return sorted(set(super().__dir__()) | set(registry.builder_method_names()))
 
-    # -- other effects ------------------------------------------------------------
-    def add_gravity(self, g) -> None:
-        """Uniform gravity, e.g. ``[0, -9.81]``."""
-        self._gravity = self._vector(g, "gravity.g")
+    def entries(self, effect: type[Effect]) -> list:
+        """The entries recorded for an effect class (the list its ``build`` receives); mutable."""
+        return self._entries.setdefault(effect, [])
 
-    def add_damping(self, gamma: float) -> None:
-        """Viscous drag ``f = -gamma v`` on every particle."""
-        if not np.isfinite(gamma) or gamma < 0:
-            raise SceneError("damping.gamma", f"must be a finite number >= 0, got {gamma!r}")
-        self._gamma = float(gamma)
+    def add_effect(self, effect: type[Effect], **raw) -> None:
+        """Check keyword values against the effect's schema and record them (builder methods use this)."""
+        prefix = f"{effect.name}."
+        effect.add(self, self.check_effect(effect, raw, prefix), prefix)
 
-    def _collider_params(self, stiffness, friction, slip_velocity=1e-3):
-        if not np.isfinite(stiffness) or stiffness <= 0:
-            raise SceneError("stiffness", f"must be > 0, got {stiffness!r}")
-        if not np.isfinite(friction) or friction < 0:
-            raise SceneError("friction", f"must be >= 0, got {friction!r}")
-        if not np.isfinite(slip_velocity) or slip_velocity <= 0:
-            raise SceneError("slip_velocity", f"must be > 0, got {slip_velocity!r}")
+    def check_effect(self, effect: type[Effect], raw: dict, prefix: str, n: int | None = None) -> dict:
+        """The values of ``raw`` checked against ``effect.keys`` (errors named ``prefix + key``).
 
-    def add_plane(self, normal, offset: float, stiffness: float, friction: float = 0.0,
-                  slip_velocity: float = 1e-3) -> None:
-        """Penalty half-space ``normal . x >= offset`` (``slip_velocity``: friction regularisation)."""
-        n = self._vector(normal, "plane.normal")
-        if np.linalg.norm(n) == 0:
-            raise SceneError("plane.normal", "must not be the zero vector")
-        self._collider_params(stiffness, friction, slip_velocity)
-        self._colliders.append(("plane", n, float(offset), float(stiffness), float(friction),
-                                float(slip_velocity)))
+        ``n``: how many particles indices may refer to (default: all added so far).
+        """
+        return check_values(effect.keys, raw, prefix, self.dim, self.n_particles if n is None else n)
 
-    def add_sphere(self, center, radius: float, stiffness: float, friction: float = 0.0,
-                   slip_velocity: float = 1e-3) -> None:
-        """Penalty sphere (disc in 2D); ``slip_velocity``: friction regularisation."""
-        c = self._vector(center, "sphere.center")
-        if not np.isfinite(radius) or radius <= 0:
-            raise SceneError("sphere.radius", f"must be > 0, got {radius!r}")
-        self._collider_params(stiffness, friction, slip_velocity)
-        self._colliders.append(("sphere", c, float(radius), float(stiffness), float(friction),
-                                float(slip_velocity)))
+    @staticmethod
+    def check_table(value, key: str) -> dict:
+        """``value`` if it is a table (a dict), else SceneError naming ``key``."""
+        if not isinstance(value, dict):
+            raise SceneError(key, f"must be a table ([{key}]), got {describe(value)}")
+        return value
+
+    @staticmethod
+    def error(key: str, reason: str) -> SceneError:
+        """The error to raise for a mistake at ``key``."""
+        return SceneError(key, reason)
 
     def set_run(self, **settings) -> None:
         """Default run settings: method, dt, t_end, save_every."""
@@ -232,28 +217,27 @@ class SceneBuilder:
         return len(self._x)
 
     def positions(self) -> np.ndarray:
+        """Positions of the particles added so far, shape (n_particles, dim)."""
         return np.array(self._x, dtype=float).reshape(-1, self.dim)
 
     def build(self, name: str = "scene", description: str = "", exact: Callable | None = None) -> Scene:
-        """Freeze everything into arrays; only the effects added here are created."""
+        """Freeze everything into arrays; only the effects added here are created.
+
+        Effects are ordered by their class's ``order`` (springs, gravity, damping, anchors,
+        colliders), then by when they were first added.
+        """
         if not self._x:
             raise SceneError("particles", "a scene needs at least one particle")
         x = self.positions()
         v = np.array(self._v, dtype=float).reshape(-1, self.dim)
         mass = np.array(self._m)
-        n = len(mass)
-        effects = []
-        if self._springs:
-            pairs = np.array(self._springs, dtype=np.int64)
-            lengths = np.linalg.norm(x[pairs[:, 0]] - x[pairs[:, 1]], axis=1)
-            rest = np.array([lengths[q] if r is None else r for q, r in enumerate(self._rest)])
-            effects.append(Springs(pairs, np.array(self._k), rest, np.array(self._c), n))
-        if self._gravity is not None:
-            effects.append(Gravity(self._gravity, mass))
-        if self._gamma is not None and self._gamma > 0:
-            effects.append(Damping(self._gamma, n, self.dim))
-        for kind, a, b, k, mu, eps in self._colliders:
-            effects.append(Plane(a, b, k, mu, eps) if kind == "plane" else Sphere(a, b, k, mu, eps))
-        system = System(mass, np.array(self._pinned), effects, self.dim)
-        return Scene(system, State(x, v), self.settings, name, description,
-                     np.array(self._kind, dtype=str), exact)
+        pinned = np.array(self._pinned)
+        ctx = BuildContext(x, v, mass, pinned, self.dim)
+        effects: list[Effect] = []
+        for cls, entries in sorted(self._entries.items(), key=lambda item: item[0].order):
+            if entries:
+                effects.extend(cls.build(entries, ctx))
+        system = System(mass, pinned, effects, self.dim)
+        springs = next((e for e in effects if isinstance(e, Springs)), None)
+        kind = springs.kind if springs is not None else np.array([], dtype=str)
+        return Scene(system, State(x, v), self.settings, name, description, kind, exact)

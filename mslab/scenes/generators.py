@@ -1,109 +1,119 @@
-"""Scene generators: the harmonic oscillator (with its closed-form solution) and the chain."""
+"""Scene geometry, defined once: chains, grids (cloth), lattices, their pinned sets and springs.
+
+The Python factories (:func:`chain`, :func:`cloth`, :func:`lattice`) and the scene-file
+generators (``generator = "chain"`` ...) use the same functions: :data:`GENERATORS` (the
+keys each generator reads), :func:`generator_shape` (checks them), :func:`generated_positions`,
+:func:`pin_set` and :func:`grid_springs`.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 
+from mslab.effects.schema import describe, integer, number, string, vector
+from mslab.errors import SceneError
 from mslab.scenes.builder import Scene, SceneBuilder
+from mslab.scenes.oscillator import oscillator, oscillator_solution
+
+__all__ = ["GENERATORS", "PIN_SETS", "chain", "cloth", "generated_positions", "generator_shape",
+           "grid_springs", "lattice", "oscillator", "oscillator_solution", "pin_set"]
+
+#: particle generators and the keys each one reads (besides the keys every body takes)
+GENERATORS: dict[str, tuple[str, ...]] = {
+    "chain": ("n", "length"),
+    "grid": ("nx", "ny", "size", "orientation"),
+    "cloth": ("nx", "ny", "size", "orientation"),
+    "lattice": ("n", "size"),
+}
+#: named pinned sets of each generator (besides plain indices)
+PIN_SETS: dict[str | None, tuple[str, ...]] = {
+    "chain": ("first", "last"),
+    "grid": ("top_corners", "top_edge", "bottom_edge", "left_edge", "right_edge"),
+    "cloth": ("top_corners", "top_edge", "bottom_edge", "left_edge", "right_edge"),
+    "lattice": ("bottom",),
+    None: (),
+}
 
 
-def oscillator_solution(t, u0: float, w0: float, beta: float, v0: float = 0.0):
-    """Closed form of ``u'' + 2 beta u' + w0^2 u = 0``: ``(u(t), u'(t))``.
+def generator_shape(generator: str, t: Mapping, prefix: str, dim: int) -> dict:
+    """Check a generator's keys in table ``t``; returns ``shape``, ``length``, ``size``, ``orientation``.
 
-    Under-, critically and over-damped cases through one complex formula
-    ``u = e^{-beta t} (u0 cos(wd t) + (v0 + beta u0) sin(wd t)/wd)``, ``wd = sqrt(w0^2 - beta^2)``.
+    ``shape``: ``(n,)`` for a chain, ``(ny, nx)`` for a grid, ``(nx, ny, nz)`` for a lattice.
+    Errors name ``prefix + key``.
     """
-    t = np.asarray(t, dtype=float)
-    wd = np.sqrt(complex(w0 * w0 - beta * beta))
-    decay = np.exp(-beta * t)
-    B = v0 + beta * u0
-    if abs(wd) < 1e-12 * max(w0, 1.0):
-        sin_over = t.astype(complex)       # sin(wd t)/wd -> t
-        cos_wd = np.ones_like(t, dtype=complex)
-        dsin_over = np.ones_like(t, dtype=complex)   # d/dt [sin(wd t)/wd] = cos(wd t)
-        dcos = np.zeros_like(t, dtype=complex)
+    if generator == "chain":
+        shape: tuple[int, ...] = (integer(t.get("n", 10), f"{prefix}n", low=2),)
+    elif generator in ("grid", "cloth"):
+        if dim < 2:
+            raise SceneError(f"{prefix}generator", f"'{generator}' needs dim 2 or 3, got dim = {dim}")
+        nx = integer(t.get("nx", 10), f"{prefix}nx", low=2)
+        shape = (integer(t.get("ny", 10), f"{prefix}ny", low=2), nx)
     else:
-        sin_over = np.sin(wd * t) / wd
-        cos_wd = np.cos(wd * t)
-        dsin_over = cos_wd
-        dcos = -wd * np.sin(wd * t)
-    u = decay * (u0 * cos_wd + B * sin_over)
-    du = -beta * u + decay * (u0 * dcos + B * dsin_over)
-    return u.real, du.real
+        if dim != 3:
+            raise SceneError(f"{prefix}generator", f"'lattice' needs dim = 3, got dim = {dim}")
+        n = t.get("n", [4, 4, 4])
+        if not isinstance(n, list) or len(n) != 3:
+            raise SceneError(f"{prefix}n",
+                             f"must be a list of 3 whole numbers [nx, ny, nz], got {describe(n)}")
+        shape = tuple(integer(k, f"{prefix}n[{i}]", low=2) for i, k in enumerate(n))
+    length = number(t.get("length", 1.0), f"{prefix}length", low=0.0, strict=True)
+    n_size = 2 if generator in ("grid", "cloth") else 3
+    size_raw = t.get("size", 1.0)
+    if isinstance(size_raw, list):
+        size = vector(size_raw, f"{prefix}size", n_size)
+        if np.any(size <= 0):
+            raise SceneError(f"{prefix}size", "must be > 0")
+    else:
+        size = np.full(n_size, number(size_raw, f"{prefix}size", low=0.0, strict=True))
+    orientation = string(t.get("orientation", "vertical"), f"{prefix}orientation", ("vertical", "horizontal"))
+    return {"shape": shape, "length": length, "size": size, "orientation": orientation}
 
 
-def oscillator(stiffness: float = 1.0, mass: float = 1.0, gamma: float = 0.0,
-               displacement: float = 0.5, velocity: float = 0.0, rest_length: float = 1.0,
-               dim: int = 1, t_end: float = 2.0 * np.pi, dt: float = 0.01) -> Scene:
-    """One mass on a spring to a pinned anchor, optionally with viscous drag.
+def generated_positions(generator: str, shape: tuple[int, ...], dim: int, length: float = 1.0,
+                        size=(1.0, 1.0, 1.0), origin=None, orientation: str = "vertical") -> np.ndarray:
+    """Positions (n_particles, dim) of a generator, numbered in C order of ``shape``.
 
-    ``m u'' = -k u - gamma u'`` for the stretch ``u``: the course's model problem, with a
-    closed-form solution attached as ``scene.exact``. Keep ``|displacement|`` below
-    ``rest_length`` (and the amplitude with it): a 1D spring squeezed through zero length
-    flips direction and the dynamics is no longer linear.
+    ``chain``: along +x from the origin, ``length`` long. ``grid``/``cloth``: ``shape =
+    (ny, nx)``, index ``j * nx + i``, x along i; j runs along the "up" axis (2D: y; 3D: z,
+    a hanging cloth) or, ``orientation = "horizontal"`` in 3D, along y (a flat sheet);
+    row ``j = ny - 1`` sits at the origin, the others at negative offsets down to ``-size[1]``.
+    ``lattice``: ``shape = (nx, ny, nz)`` spanning ``size`` from the origin.
     """
-    b = SceneBuilder(dim)
-    e = np.zeros(dim)
-    e[0] = 1.0
-    anchor = b.add_particle(np.zeros(dim), mass=mass, pinned=True)
-    p = b.add_particle((rest_length + displacement) * e, mass=mass, velocity=velocity * e)
-    b.add_spring(anchor, p, stiffness, rest_length=rest_length)
-    if gamma > 0:
-        b.add_damping(gamma)
-    b.set_run(method="rk4", dt=dt, t_end=t_end)
-    w0 = float(np.sqrt(stiffness / mass))
-    beta = gamma / (2.0 * mass)
-
-    def exact(t):
-        t = np.atleast_1d(np.asarray(t, dtype=float))
-        u, du = oscillator_solution(t, displacement, w0, beta, velocity)
-        x = np.zeros((t.size, 2, dim))
-        v = np.zeros((t.size, 2, dim))
-        x[:, 1, 0] = rest_length + u
-        v[:, 1, 0] = du
-        return x, v
-
-    kind = "damped " if gamma > 0 else ""
-    return b.build("oscillator", f"{kind}harmonic oscillator, w0 = {w0:g}", exact=exact)
+    size = np.asarray(size, dtype=float)
+    if generator == "chain":
+        x = np.zeros((shape[0], dim))
+        x[:, 0] = np.linspace(0.0, length, shape[0])
+    elif generator in ("grid", "cloth"):
+        ny, nx = shape
+        gx, gy = np.meshgrid(np.linspace(0.0, size[0], nx), np.linspace(-size[1], 0.0, ny), indexing="xy")
+        x = np.zeros((nx * ny, dim))
+        x[:, 0] = gx.ravel()
+        x[:, 1 if orientation == "horizontal" else dim - 1] = gy.ravel()
+    else:
+        axes = [np.linspace(0.0, s, k) for s, k in zip(size, shape, strict=True)]
+        x = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    return x if origin is None else x + np.asarray(origin, dtype=float)
 
 
-def chain(n: int = 10, dim: int = 2, length: float = 1.0, mass: float = 1.0, stiffness: float = 100.0,
-          damping: float = 0.0, gamma: float = 0.0, gravity: float | None = 9.81,
-          pin: str = "first") -> Scene:
-    """A chain of ``n`` particles on the x axis joined by structural springs.
-
-    Parameters
-    ----------
-    n : int
-        Number of particles (n - 1 springs).
-    length, mass : float
-        Total length and total mass (equal masses).
-    stiffness, damping : float
-        Spring stiffness k and damping c along each spring.
-    gamma : float
-        Viscous drag on every particle (0: none, the effect is not built).
-    gravity : float or None
-        Strength of gravity along -y (-x in 1D); None or 0: no gravity effect.
-    pin : {"first", "both", "none"}
-    """
-    b = SceneBuilder(dim)
-    xs = np.linspace(0.0, length, n)
-    m = mass / n
-    for i, xi in enumerate(xs):
-        pos = np.zeros(dim)
-        pos[0] = xi
-        pinned = (pin in ("first", "both") and i == 0) or (pin == "both" and i == n - 1)
-        b.add_particle(pos, mass=m, pinned=pinned)
-    for i in range(n - 1):
-        b.add_spring(i, i + 1, stiffness, damping=damping)
-    if gravity:
-        g = np.zeros(dim)
-        g[min(1, dim - 1)] = -gravity
-        b.add_gravity(g)
-    if gamma:
-        b.add_damping(gamma)
-    b.set_run(method="rk4", dt=1e-3, t_end=2.0)
-    return b.build("chain", f"chain of {n} particles, k = {stiffness:g}")
+def pin_set(generator: str, name: str, shape: tuple[int, ...]) -> list[int]:
+    """Indices of a named pinned set of a generator (see :data:`PIN_SETS`)."""
+    if name not in PIN_SETS[generator]:
+        raise ValueError(f"generator '{generator}' has no pinned set '{name}'; "
+                         f"valid: {', '.join(PIN_SETS[generator])}")
+    index = np.arange(int(np.prod(shape))).reshape(shape)
+    sets = {
+        "first": lambda: [0],
+        "last": lambda: [shape[0] - 1],
+        "top_corners": lambda: [index[-1, 0], index[-1, -1]],
+        "top_edge": lambda: index[-1, :].tolist(),
+        "bottom_edge": lambda: index[0, :].tolist(),
+        "left_edge": lambda: index[:, 0].tolist(),
+        "right_edge": lambda: index[:, -1].tolist(),
+        "bottom": lambda: index[:, :, 0].ravel().tolist(),
+    }
+    return [int(i) for i in sets[name]()]
 
 
 def _offsets(ndim: int, kind: str) -> list[tuple[int, ...]]:
@@ -140,6 +150,39 @@ def grid_springs(shape: tuple[int, ...], kind: str) -> np.ndarray:
     return np.concatenate(pairs) if pairs else np.empty((0, 2), dtype=np.int64)
 
 
+def chain(n: int = 10, dim: int = 2, length: float = 1.0, mass: float = 1.0, stiffness: float = 100.0,
+          damping: float = 0.0, gamma: float = 0.0, gravity: float | None = 9.81,
+          pin: str = "first") -> Scene:
+    """A chain of ``n`` particles on the x axis joined by structural springs.
+
+    Parameters
+    ----------
+    n : int
+        Number of particles (n - 1 springs).
+    length, mass : float
+        Total length and total mass (equal masses).
+    stiffness, damping : float
+        Spring stiffness k and damping c along each spring.
+    gamma : float
+        Viscous drag on every particle (0: none, the effect is not built).
+    gravity : float or None
+        Strength of gravity pulling down (-y in 2D, -z in 3D, -x in 1D); None or 0: no gravity effect.
+    pin : {"first", "last", "both", "none"}
+    """
+    b = SceneBuilder(dim)
+    pins = {"both": ["first", "last"], "none": []}.get(pin, [pin])
+    pinned = {i for name in pins for i in pin_set("chain", name, (n,))}
+    for i, pos in enumerate(generated_positions("chain", (n,), dim, length)):
+        b.add_particle(pos, mass=mass / n, pinned=i in pinned)
+    b.add_springs(grid_springs((n,), "structural"), stiffness, damping=damping)
+    if gravity:
+        b.add_gravity(gravity)
+    if gamma:
+        b.add_damping(gamma)
+    b.set_run(method="rk4", dt=1e-3, t_end=2.0)
+    return b.build("chain", f"chain of {n} particles, k = {stiffness:g}")
+
+
 def cloth(nx: int = 10, ny: int = 10, size: float = 1.0, mass: float = 1.0,
           structural: float = 500.0, shear: float | None = 50.0, bend: float | None = 5.0,
           damping: float = 0.0, gamma: float = 0.0, gravity: float | None = 9.81,
@@ -148,21 +191,18 @@ def cloth(nx: int = 10, ny: int = 10, size: float = 1.0, mass: float = 1.0,
 
     Row ``j = ny - 1`` is the top edge (z = 0); the cloth hangs down to ``z = -size``.
     Spring kinds have their own stiffness; ``None`` (or 0) leaves a kind out.
-    ``pin``: ``top_corners``, ``top_edge`` or ``none``.
+    ``pin``: ``top_corners``, ``top_edge`` (or any grid pinned set) or ``none``.
     """
     b = SceneBuilder(3)
-    gx, gz = np.meshgrid(np.linspace(0.0, size, nx), np.linspace(-size, 0.0, ny), indexing="xy")
-    pos = np.stack([gx.ravel(), np.zeros(nx * ny), gz.ravel()], axis=1)  # index = j * nx + i
-    b.add_particles(pos, mass=mass / (nx * ny))
-    top = [(ny - 1) * nx + i for i in range(nx)]
-    pins = {"top_corners": [top[0], top[-1]], "top_edge": top, "none": []}[pin]
-    for p in pins:
+    shape = (ny, nx)
+    b.add_particles(generated_positions("cloth", shape, 3, size=(size, size)), mass=mass / (nx * ny))
+    for p in [] if pin == "none" else pin_set("cloth", pin, shape):
         b.pin(p)
     for kind, k in (("structural", structural), ("shear", shear), ("bend", bend)):
         if k:
-            b.add_springs(grid_springs((ny, nx), kind), k, damping=damping, kind=kind)
+            b.add_springs(grid_springs(shape, kind), k, damping=damping, kind=kind)
     if gravity:
-        b.add_gravity([0.0, 0.0, -gravity])
+        b.add_gravity(gravity)
     if gamma:
         b.add_damping(gamma)
     b.set_run(method="implicit_euler", dt=1e-2, t_end=2.0)
@@ -174,8 +214,7 @@ def lattice(n: tuple[int, int, int] = (4, 4, 4), size: float = 1.0, mass: float 
             damping: float = 0.0, gamma: float = 0.0, origin=(0.0, 0.0, 0.0)) -> Scene:
     """A 3D block of particles (a soft body) with structural, shear and bend springs."""
     b = SceneBuilder(3)
-    axes = [np.linspace(0.0, size, k) for k in n]
-    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3) + np.asarray(origin, float)
+    grid = generated_positions("lattice", tuple(n), 3, size=(size, size, size), origin=origin)
     b.add_particles(grid, mass=mass / grid.shape[0])
     for kind, k in (("structural", structural), ("shear", shear), ("bend", bend)):
         if k:

@@ -1,0 +1,90 @@
+"""The effect registry: every module of the ``mslab.effects`` package is found on import.
+
+A module that defines an effect decorates its class with :func:`register`; the package
+imports each of its modules (:func:`discover`, also re-run when a name is not found, so a
+module added later is picked up), and the ``SceneBuilder``, the scene-file loader and
+validator, and the scene-format table of ``docs/scenes.md`` iterate :func:`effect_classes`.
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+from collections.abc import Callable
+
+from mslab.effects.base import Effect
+
+#: infrastructure modules of the package that define no effect
+_INFRASTRUCTURE = {"base", "registry", "schema", "docs"}
+
+_registry: dict[str, type[Effect]] = {}
+_imported: set[str] = set()
+
+
+def register(cls: type[Effect]) -> type[Effect]:
+    """Class decorator: add an effect class to the registry (by its ``name``)."""
+    if not (isinstance(cls, type) and issubclass(cls, Effect)):
+        raise TypeError(f"register() takes an Effect subclass, got {cls!r}")
+    if not cls.name or cls.name == Effect.name:
+        raise ValueError(f"{cls.__name__}: set the class attribute 'name'")
+    for method in cls.builder_methods:
+        if not callable(getattr(cls, method, None)):
+            raise ValueError(f"{cls.__name__}: builder method '{method}' is not defined on the class")
+        other = builder_method(method, rescan=False)
+        if other is not None and other[0].name != cls.name:
+            raise ValueError(f"{cls.__name__}: builder method '{method}' is already provided by "
+                             f"{other[0].__name__}")
+    _registry[cls.name] = cls
+    return cls
+
+
+def discover() -> None:
+    """Import every module of the ``mslab.effects`` package not imported yet.
+
+    Modules on any folder of the package's ``__path__`` count, so a test (or a course
+    installation) may add a folder to ``mslab.effects.__path__``.
+    """
+    import mslab.effects as package
+
+    for info in pkgutil.iter_modules(package.__path__):
+        name = info.name
+        if name in _INFRASTRUCTURE or name.startswith("_") or name in _imported:
+            continue
+        _imported.add(name)
+        importlib.import_module(f"mslab.effects.{name}")
+
+
+def effect_classes() -> list[type[Effect]]:
+    """Registered effect classes in System order (``order``, then registration order)."""
+    discover()
+    return sorted(_registry.values(), key=lambda cls: cls.order)
+
+
+def get_effect(name: str) -> type[Effect]:
+    """The registered effect class called ``name`` (KeyError when unknown)."""
+    discover()
+    return _registry[name]
+
+
+def sections() -> dict[str, list[type[Effect]]]:
+    """TOML section name -> the effects read from it (several for a ``[[...]]`` section with ``type``)."""
+    out: dict[str, list[type[Effect]]] = {}
+    for cls in effect_classes():
+        if cls.section is not None:
+            out.setdefault(cls.section, []).append(cls)
+    return out
+
+
+def builder_method(name: str, rescan: bool = True) -> tuple[type[Effect], Callable] | None:
+    """``(effect class, function)`` of the ``SceneBuilder`` method ``name``, or None."""
+    if rescan:
+        discover()
+    for cls in _registry.values():
+        if name in cls.builder_methods:
+            return cls, getattr(cls, name)
+    return None
+
+
+def builder_method_names() -> list[str]:
+    """Every ``SceneBuilder`` method the registered effects provide."""
+    return [m for cls in effect_classes() for m in cls.builder_methods]
