@@ -1,0 +1,102 @@
+"""What ``mslab.derive`` reads from a method: its coefficients, chosen by what it carries.
+
+A Runge-Kutta method (explicit or implicit) carries ``coefficients = {"A", "b", "c"}``, a
+splitting ``coefficients = {"drift", "kick"}``, both exactly as the user gave them. The
+two-step (Verlet) and staggered (leapfrog) adapters carry ``splitting``, the splitting
+they equal, and ``family``. No method class is tested for: only these attributes.
+
+Until every integrator carries ``coefficients``, three fallbacks keep older method objects
+working: float arrays ``A, b`` (explicit tableaux), the tableaux of the implicit one-stage
+methods by registry name, and otherwise a symbolic run of the method's own ``step``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from mslab.integrators.base import get_method
+
+#: Fallback for implicit methods without ``coefficients`` (their Butcher tableaux:
+#: implicit Euler, seed eq. 27, also solved by fixed-point iteration, eq. 28; the
+#: implicit midpoint rule). Delete when ``ImplicitRK`` carries them.
+_LEGACY_TABLEAUX = {
+    "implicit_euler": ([[1]], [1]),
+    "implicit_euler_fp": ([[1]], [1]),
+    "implicit_midpoint": ([["1/2"]], [1]),
+}
+#: Fallback ``family`` of method objects that do not state one yet.
+_LEGACY_FAMILY = {"verlet": "two_step", "leapfrog": "staggered"}
+
+
+@dataclass(frozen=True)
+class Reading:
+    """A method as ``mslab.derive`` sees it.
+
+    Attributes
+    ----------
+    kind : {"rk", "splitting", "run"}
+        Butcher tableau, drift/kick splitting, or a symbolic run of ``start``/``step``.
+    name : str
+    A, b : tuple
+        Tableau (``kind == "rk"``), coefficients as given.
+    drift, kick : tuple
+        Splitting coefficients (``kind == "splitting"``), as given.
+    splitting : Reading or None
+        For a run: the splitting the method equals, if it names one.
+    two_step : bool
+        For a run: the method is the two-step formula ``x_{n+1} = 2 x_n - x_{n-1} + h^2 a_n``.
+    method : object
+        The method object itself (what a run steps).
+    """
+
+    kind: str
+    name: str
+    A: tuple = ()
+    b: tuple = ()
+    drift: tuple = ()
+    kick: tuple = ()
+    splitting: Reading | None = None
+    two_step: bool = False
+    method: object = None
+
+    def key(self) -> tuple:
+        """A hashable key: equal for equal coefficients (a run is keyed by its object)."""
+        if self.kind == "run":
+            return ("run", self.name, id(self.method))
+        return (self.kind, self.name, repr((self.A, self.b, self.drift, self.kick)))
+
+
+def _rows(A) -> tuple:
+    return tuple(tuple(row) for row in A)
+
+
+def read(method) -> Reading:
+    """Read a registry name or method object.
+
+    Raises
+    ------
+    KeyError
+        Unknown registry name (from ``mslab.get_method``).
+    """
+    m = get_method(method) if isinstance(method, str) else method
+    name = str(getattr(m, "name", type(m).__name__))
+    coefficients = getattr(m, "coefficients", None) or {}
+    if "A" in coefficients:
+        return Reading("rk", name, A=_rows(coefficients["A"]), b=tuple(coefficients["b"]), method=m)
+    if "drift" in coefficients:
+        return Reading("splitting", name, drift=tuple(coefficients["drift"]),
+                       kick=tuple(coefficients["kick"]), method=m)
+    family = getattr(m, "family", None) or _LEGACY_FAMILY.get(name)
+    inner = getattr(m, "splitting", None)
+    if inner is not None or family in ("two_step", "staggered"):
+        return Reading("run", name, splitting=read(inner) if inner is not None else None,
+                       two_step=family == "two_step", method=m)
+    if getattr(m, "A", None) is not None and getattr(m, "b", None) is not None:
+        A, b = np.asarray(m.A, dtype=float).tolist(), np.asarray(m.b, dtype=float).tolist()
+        return Reading("rk", name, A=_rows(A), b=tuple(b), method=m)
+    if name in _LEGACY_TABLEAUX:
+        A, b = _LEGACY_TABLEAUX[name]
+        return Reading("rk", name, A=_rows(A), b=tuple(b), method=m)
+    return Reading("run", name, method=m)
