@@ -103,7 +103,8 @@ class Arithmetic:
             self.zero, self.one = domain.zero, domain.one
         else:
             self.domain = None
-            self._converted = [float(v) if p is None else float(sp.N(p, 20)) for p, v in zip(parsed, values, strict=True)]
+            self._converted = [float(v) if p is None else float(sp.N(p, 20))
+                               for p, v in zip(parsed, values, strict=True)]
             self.zero, self.one = 0.0, 1.0
 
     def elements(self) -> list:

@@ -56,6 +56,7 @@ class _Weights:
                              for k, m in coupling.items()}
             self.abs_coupling = {k: np.abs(m) for k, m in self.coupling.items()}
         self._memo: dict = {}
+        self._carried: dict = {}
 
     def _stage(self, tree: tuple):
         """``u(t)`` over the stages of the root's colour (and ``|u|(t)`` for floats)."""
@@ -66,19 +67,31 @@ class _Weights:
         if self.exact:
             u = [self.arith.one] * n
             for child in children:
-                cu = self._stage(child)
-                rows = self.coupling[(colour, child[0])]
-                u = [ui * sum((m * cu[j] for j, m in row), self.arith.zero) for ui, row in zip(u, rows,
-                                                                                              strict=True)]
+                u = [ui * wi for ui, wi in zip(u, self._into(colour, child), strict=True)]
             out = u
         else:
             u, ua = np.ones(n), np.ones(n)
             for child in children:
-                cu, cua = self._stage(child)
-                u = u * (self.coupling[(colour, child[0])] @ cu)
-                ua = ua * (self.abs_coupling[(colour, child[0])] @ cua)
+                cw, cwa = self._into(colour, child)
+                u, ua = u * cw, ua * cwa
             out = (u, ua)
         self._memo[tree] = out
+        return out
+
+    def _into(self, colour: str, child: tuple):
+        """``M u(child)``: a child's stage vector carried into a parent's stages (memoised)."""
+        key = (colour, child)
+        if key in self._carried:
+            return self._carried[key]
+        matrix = self.coupling[(colour, child[0])]
+        if self.exact:
+            cu = self._stage(child)
+            zero = self.arith.zero
+            out = [sum((m * cu[j] for j, m in row), zero) for row in matrix]
+        else:
+            cu, cua = self._stage(child)
+            out = (matrix @ cu, self.abs_coupling[(colour, child[0])] @ cua)
+        self._carried[key] = out
         return out
 
     def holds(self, tree: tuple, order: int, gamma: int) -> bool:
