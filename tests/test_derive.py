@@ -1,5 +1,9 @@
 """mslab.derive: orders and local errors from Taylor expansions, against hand derivations."""
 
+import time
+from fractions import Fraction
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 import sympy as sp
@@ -148,3 +152,217 @@ def test_taylor_backward_and_velocity_series():
     with pytest.raises(ValueError):
         derive.taylor(2, "third")
 
+
+
+# -- exact orders: rooted-tree order conditions on the coefficients as given ------------
+def rk_method(A, b, name="tableau", family="explicit_rk"):
+    """A stand-in method object with the Runge-Kutta interface mslab.derive reads."""
+    return SimpleNamespace(name=name, family=family, order=0,
+                           A=np.array([[float(sp.N(sp.sympify(a))) for a in row] for row in A]),
+                           b=np.array([float(sp.N(sp.sympify(w))) for w in b]), c=None,
+                           coefficients={"A": tuple(tuple(row) for row in A), "b": tuple(b), "c": None})
+
+
+def splitting(drift, kick, name="splitting"):
+    """A stand-in splitting (drift first) with the interface mslab.derive reads."""
+    return SimpleNamespace(name=name, family="splitting", order=0,
+                           drift=np.array([float(sp.N(sp.sympify(a))) for a in drift]),
+                           kick=np.array([float(sp.N(sp.sympify(b))) for b in kick]),
+                           coefficients={"drift": tuple(drift), "kick": tuple(kick)})
+
+
+def floats(rows):
+    return [[float(sp.N(sp.sympify(a))) for a in row] for row in rows]
+
+
+#: Dormand & Prince, J. Comput. Appl. Math. 6 (1980) 19-26, RK5(4)7M (the order-5 weights).
+DP5_A = [[0] * 7, ["1/5", 0, 0, 0, 0, 0, 0], ["3/40", "9/40", 0, 0, 0, 0, 0],
+         ["44/45", "-56/15", "32/9", 0, 0, 0, 0],
+         ["19372/6561", "-25360/2187", "64448/6561", "-212/729", 0, 0, 0],
+         ["9017/3168", "-355/33", "46732/5247", "49/176", "-5103/18656", 0, 0],
+         ["35/384", 0, "500/1113", "125/192", "-2187/6784", "11/84", 0]]
+DP5_B = ["35/384", 0, "500/1113", "125/192", "-2187/6784", "11/84", 0]
+
+
+@pytest.mark.parametrize("form", ["strings", "fractions", "sympy", "floats"])
+def test_dopri5_in_every_form_has_order_5(form):
+    if form == "strings":
+        A, b = DP5_A, DP5_B
+    elif form == "fractions":
+        A, b = [[Fraction(str(a)) for a in r] for r in DP5_A], [Fraction(str(w)) for w in DP5_B]
+    elif form == "sympy":
+        A, b = [[sp.Rational(str(a)) for a in r] for r in DP5_A], [sp.Rational(str(w)) for w in DP5_B]
+    else:
+        A, b = floats(DP5_A), floats([DP5_B])[0]
+    assert derive.order(rk_method(A, b, "dopri5")) == 5
+
+
+def test_one_coefficient_off_by_1e6_lowers_the_order():
+    A, b = floats(DP5_A), floats([DP5_B])[0]
+    bad = [row[:] for row in A]
+    bad[3][2] += 1e-6                     # c4 moves: sum b_i c_i = 1/2 fails by b4 1e-6
+    assert derive.order(rk_method(bad, b)) == 1
+    bad[3][0] -= 1e-6                     # row sums kept: sum b_i a_ij c_j = 1/6 fails
+    assert derive.order(rk_method(bad, b)) == 2
+    exact = [[Fraction(str(a)) for a in r] for r in DP5_A]
+    exact[3][2] += Fraction(1, 10**6)
+    exact[3][0] -= Fraction(1, 10**6)
+    assert derive.order(rk_method(exact, [Fraction(str(w)) for w in DP5_B])) == 2
+
+
+@pytest.mark.parametrize("a", [1 / sp.sqrt(2), 1 / np.sqrt(2), "1/sqrt(2)", sp.Rational(2, 3), 0.75])
+def test_two_stage_family_is_order_2_for_every_a(a):
+    # b2 a = 1/2 and b1 + b2 = 1 for every a != 0: order 2 (the issue's a = 1/sqrt(2) gave 1)
+    ae = sp.sympify(a) if isinstance(a, str) else a
+    b = [1 - 1 / (2 * ae), 1 / (2 * ae)]
+    assert derive.order(rk_method([[0, 0], [ae, 0]], b)) == 2
+    if isinstance(a, str):                # also all as strings
+        assert derive.order(rk_method([[0, 0], [a, 0]], ["1 - sqrt(2)/2", "sqrt(2)/2"])) == 2
+
+
+g = 1 - 1 / sp.sqrt(2)
+s3 = sp.sqrt(3)
+IMPLICIT = {
+    # Gauss-Legendre 2 stages, order 2s = 4 (Butcher 1964; Hairer-Wanner II, Table IV.5.1)
+    "gauss2": ([[sp.Rational(1, 4), sp.Rational(1, 4) - s3 / 6], [sp.Rational(1, 4) + s3 / 6, sp.Rational(1, 4)]],
+               [sp.Rational(1, 2), sp.Rational(1, 2)], 4),
+    # Radau IIA 2 stages, order 2s - 1 = 3 (Hairer-Wanner II, Table IV.5.5)
+    "radau_iia2": ([["5/12", "-1/12"], ["3/4", "1/4"]], ["3/4", "1/4"], 3),
+    # SDIRK, gamma = 1 - 1/sqrt(2): L-stable, order 2 (Alexander 1977; Hairer-Wanner II, IV.6)
+    "sdirk2": ([[g, 0], [1 - g, g]], [1 - g, g], 2),
+    "implicit_euler": ([[1]], [1], 1),
+    "implicit_midpoint": ([["1/2"]], [1], 2),
+}
+
+
+@pytest.mark.parametrize("name", list(IMPLICIT))
+@pytest.mark.parametrize("form", ["exact", "floats"])
+def test_implicit_tableaux(name, form):
+    A, b, p = IMPLICIT[name]
+    if form == "floats":
+        A, b = floats(A), floats([b])[0]
+    assert derive.order(rk_method(A, b, name, "implicit_rk")) == p
+
+
+@pytest.mark.parametrize("name, expected", [
+    ("gauss2", (1 + z / 2 + z**2 / 12) / (1 - z / 2 + z**2 / 12)),     # (2,2) Padé approximant
+    ("radau_iia2", (1 + z / 3) / (1 - 2 * z / 3 + z**2 / 6)),          # (1,2) Padé approximant
+    ("implicit_midpoint", (1 + z / 2) / (1 - z / 2)),
+])
+def test_stability_function_of_implicit_tableaux(name, expected):
+    A, b, _ = IMPLICIT[name]
+    assert same(derive.stability_function(rk_method(A, b, name, "implicit_rk")), expected)
+
+
+def test_sdirk2_is_l_stable_exactly():
+    A, b, _ = IMPLICIT["sdirk2"]
+    R = derive.stability_function(rk_method(A, b, "sdirk2", "implicit_rk"))
+    assert sp.limit(R, z, -sp.oo) == 0 and sp.simplify(R.subs(z, 0)) == 1
+
+
+def test_implicit_midpoint_local_error_from_its_tableau():
+    # y1 = y + h f((y + y1)/2) = y + h f + h^2/2 f'f + h^3 (f'^2 f/4 + f'' f^2/8) + ...,
+    # the exact h^3 term is (f'' f^2 + f'^2 f)/6
+    A, b, _ = IMPLICIT["implicit_midpoint"]
+    expected = h**3 * (f2 * f**2 / 24 - f * f1**2 / 12)
+    assert same(derive.local_error(rk_method(A, b, "im", "implicit_rk")), expected)
+
+
+def test_bad_coefficients_are_one_line_errors():
+    with pytest.raises(ValueError, match="not a number"):
+        derive.order(SimpleNamespace(name="x", coefficients={"A": ((0,),), "b": ("one",), "c": None}))
+    with pytest.raises(ValueError, match="1 x 1"):
+        derive.order(SimpleNamespace(name="x", coefficients={"A": ((0, 0),), "b": (1,), "c": None}))
+
+
+# -- splittings: x += a_i h v, v += b_i h a(x), drift first --------------------------------
+THETA = 1 / (2 - sp.root(2, 3))
+#: Yoshida, Phys. Lett. A 150 (1990) 262-268, Table 1, solution A: the order-6 symmetric
+#: composition w3 w2 w1 w0 w1 w2 w3 of Störmer-Verlet steps, w0 = 1 - 2 (w1 + w2 + w3).
+YOSHIDA_W = (-1.17767998417887, 0.235573213359357, 0.784513610477560)
+
+
+def composition(weights):
+    """Drift/kick coefficients of Störmer-Verlet (drift h/2, kick h, drift h/2) composed."""
+    drift = [weights[0] / 2] + [(weights[i] + weights[i + 1]) / 2 for i in range(len(weights) - 1)]
+    return drift + [weights[-1] / 2], list(weights)
+
+
+def yoshida6():
+    w1, w2, w3 = YOSHIDA_W
+    return composition([w3, w2, w1, 1 - 2 * (w1 + w2 + w3), w1, w2, w3])
+
+
+SPLITTINGS = {
+    # velocity first (seed eqs. 9-10): the first drift is empty, v += h a(x), x += h v
+    "symplectic_euler": (([0, 1], [1]), 1),
+    "symplectic_euler_x": (([1, 0], [1]), 1),          # position first, eqs. 7-8
+    "stormer_verlet": ((["1/2", "1/2"], [1]), 2),      # drift-kick-drift
+    "velocity_verlet": (([0, 1, 0], ["1/2", "1/2"]), 2),  # kick-drift-kick
+    # Forest & Ruth, Physica D 43 (1990) 105: theta = 1/(2 - 2^(1/3))
+    "forest_ruth": (([THETA / 2, (1 - THETA) / 2, (1 - THETA) / 2, THETA / 2], [THETA, 1 - 2 * THETA, THETA]), 4),
+    "yoshida6": (yoshida6(), 6),
+}
+
+
+@pytest.mark.parametrize("name", list(SPLITTINGS))
+@pytest.mark.parametrize("form", ["given", "floats"])
+def test_splitting_orders(name, form):
+    (drift, kick), p = SPLITTINGS[name]
+    if form == "floats":
+        drift, kick = floats([drift])[0], floats([kick])[0]
+    assert derive.order(splitting(drift, kick, name)) == p
+
+
+def test_perturbed_forest_ruth_loses_its_order():
+    (drift, kick), _ = SPLITTINGS["forest_ruth"]
+    drift, kick = floats([drift])[0], floats([kick])[0]
+    drift[1] += 1e-6
+    drift[2] -= 1e-6                      # sum of drifts kept: consistent, order 4 lost
+    assert derive.order(splitting(drift, kick)) < 4
+
+
+def _step(drift, kick, x, v, h):
+    for i, a in enumerate(drift):
+        x = x + a * h * v
+        if i < len(kick):
+            v = v - kick[i] * h * np.sin(x)
+    return x, v
+
+
+@pytest.mark.parametrize("name", ["symplectic_euler", "stormer_verlet", "forest_ruth", "yoshida6"])
+def test_splitting_order_matches_the_convergence_slope(name):
+    """Independent truth: the fitted global error slope on the pendulum x'' = -sin x."""
+    from scipy.integrate import solve_ivp
+
+    (drift, kick), p = SPLITTINGS[name]
+    drift, kick = floats([drift])[0], floats([kick])[0]
+    x0, v0, t_end = 1.0, 0.5, 2.0
+    ref = solve_ivp(lambda t, y: [y[1], -np.sin(y[0])], (0, t_end), [x0, v0], method="DOP853",
+                    rtol=1e-13, atol=1e-13).y[:, -1]
+    errors, hs = [], [t_end / n for n in (8, 16, 32)] if p >= 4 else [t_end / n for n in (50, 100, 200)]
+    for hh in hs:
+        x, v = x0, v0
+        for _ in range(round(t_end / hh)):
+            x, v = _step(drift, kick, x, v, hh)
+        errors.append(np.hypot(x - ref[0], v - ref[1]))
+    slope = np.polyfit(np.log(hs), np.log(errors), 1)[0]
+    assert abs(slope - p) < 0.3, (slope, errors)
+    assert derive.order(splitting(drift, kick, name)) == p
+
+
+def test_adapters_report_the_order_of_their_splitting():
+    (drift, kick), _ = SPLITTINGS["stormer_verlet"]
+    for family in ("two_step", "staggered"):
+        adapter = SimpleNamespace(name="adapter", family=family, order=2, splitting=splitting(drift, kick))
+        assert derive.order(adapter) == 2
+
+
+def test_splitting_local_error_matches_the_stepping_code():
+    # kick-drift-kick from its coefficients = the velocity Verlet class run symbolically
+    (drift, kick), _ = SPLITTINGS["velocity_verlet"]
+    from_coefficients = derive.analyse(splitting(drift, kick, "kdk"))
+    assert from_coefficients.order == 2
+    assert same(from_coefficients.leading[0], derive.local_error("velocity_verlet")[0])
+    assert same(from_coefficients.leading[1], derive.local_error("velocity_verlet")[1])
+    assert same(derive.analyse(splitting([0, 1], [1])).leading[0], -h**2 / 2 * a)
