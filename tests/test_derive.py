@@ -1,6 +1,5 @@
 """mslab.derive: orders and local errors from Taylor expansions, against hand derivations."""
 
-import time
 from fractions import Fraction
 from types import SimpleNamespace
 
@@ -224,8 +223,7 @@ g = 1 - 1 / sp.sqrt(2)
 s3 = sp.sqrt(3)
 IMPLICIT = {
     # Gauss-Legendre 2 stages, order 2s = 4 (Butcher 1964; Hairer-Wanner II, Table IV.5.1)
-    "gauss2": ([[sp.Rational(1, 4), sp.Rational(1, 4) - s3 / 6], [sp.Rational(1, 4) + s3 / 6, sp.Rational(1, 4)]],
-               [sp.Rational(1, 2), sp.Rational(1, 2)], 4),
+    "gauss2": ([["1/4", sp.Rational(1, 4) - s3 / 6], [sp.Rational(1, 4) + s3 / 6, "1/4"]], ["1/2", "1/2"], 4),
     # Radau IIA 2 stages, order 2s - 1 = 3 (Hairer-Wanner II, Table IV.5.5)
     "radau_iia2": ([["5/12", "-1/12"], ["3/4", "1/4"]], ["3/4", "1/4"], 3),
     # SDIRK, gamma = 1 - 1/sqrt(2): L-stable, order 2 (Alexander 1977; Hairer-Wanner II, IV.6)
@@ -300,7 +298,8 @@ SPLITTINGS = {
     "stormer_verlet": ((["1/2", "1/2"], [1]), 2),      # drift-kick-drift
     "velocity_verlet": (([0, 1, 0], ["1/2", "1/2"]), 2),  # kick-drift-kick
     # Forest & Ruth, Physica D 43 (1990) 105: theta = 1/(2 - 2^(1/3))
-    "forest_ruth": (([THETA / 2, (1 - THETA) / 2, (1 - THETA) / 2, THETA / 2], [THETA, 1 - 2 * THETA, THETA]), 4),
+    "forest_ruth": (([THETA / 2, (1 - THETA) / 2, (1 - THETA) / 2, THETA / 2],
+                     [THETA, 1 - 2 * THETA, THETA]), 4),
     "yoshida6": (yoshida6(), 6),
 }
 

@@ -28,17 +28,15 @@ def rk_series(A, b, n: int) -> sp.Expr:
     bd = [display(w) for w in b]
     s = len(bd)
 
-    def f(arg):
-        return compose(F, y, arg, n)
-
     stages = [y] * s
-    slopes = [f(y)] * s
-    for _ in range(1 if _explicit(Ad) else n + 1):
+    slopes = [F[0]] * s
+    # explicit: one sweep in stage order; implicit: sweep k fixes the h^k terms
+    for k in [n] if _explicit(Ad) else range(1, n + 1):
         for i in range(s):
             stages[i] = trunc(y + h * sum((Ad[i][j] * slopes[j] for j in range(s) if Ad[i][j] != 0),
-                                          sp.Integer(0)), n)
-            slopes[i] = f(stages[i])
-    return trunc(y + h * sum((bi * k for bi, k in zip(bd, slopes, strict=True)), sp.Integer(0)), n)
+                                          sp.Integer(0)), k)
+            slopes[i] = compose(F, y, stages[i], k)
+    return trunc(y + h * sum((bi * ki for bi, ki in zip(bd, slopes, strict=True)), sp.Integer(0)), n)
 
 
 def splitting_series(drift, kick, n: int) -> tuple[sp.Expr, sp.Expr]:
