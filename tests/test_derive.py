@@ -1,5 +1,7 @@
 """mslab.derive: orders and local errors from Taylor expansions, against hand derivations."""
 
+import time
+import warnings
 from fractions import Fraction
 from types import SimpleNamespace
 
@@ -365,3 +367,130 @@ def test_splitting_local_error_matches_the_stepping_code():
     assert same(from_coefficients.leading[0], derive.local_error("velocity_verlet")[0])
     assert same(from_coefficients.leading[1], derive.local_error("velocity_verlet")[1])
     assert same(derive.analyse(splitting([0, 1], [1])).leading[0], -h**2 / 2 * a)
+
+
+# -- a published tableau library: nodepy (test-only dependency) ---------------------------
+#: Orders nodepy states for its explicit methods, from the names and descriptions of
+#: ``loadRKM`` ("RK5(4)7": order 5, embedded 4; "SSP 54": Ruuth-Spiteri SSP(5,4); "Optimal
+#: 3rd-order SSP ..."). Pairs: (order of b, order of the embedded bhat).
+NODEPY_STATED = {
+    "FE": 1, "SSP22": 2, "Heun22": 2, "MTE22": 2, "Mid22": 2, "SSP22star": 2, "SSP33": 3,
+    "Heun33": 3, "NSSP32": 2, "NSSP33": 3, "SSP43": 3, "SSP104": 4, "RK44": 4, "BuRK65": 5,
+    "Fehlberg45": (5, 4), "Fehlberg43": (4, 3), "Merson43": (4, 3), "Soderlind43": (4, 3),
+    "Zonneveld43": (4, 3), "Tsit5": (5, 4), "CK5": (5, 4), "HH5": (5, 4), "HH5S": (5, 4),
+    "DP5": (5, 4), "CMR6": (6, 5), "BS3": (3, 2), "BS5": (5, 4), "PD8": (8, 7),
+    "SSP75": 5, "SSP85": 5, "SSP95": 5, "SSP54": 4, "SSP63": 3,
+    # implicit: Gauss s stages 2s, Radau IIA 2s - 1, Lobatto IIIA/IIIC 2s - 2 (Hairer-Wanner
+    # II, sec. IV.5); SDIRK23/34 "3rd-/4th-order SDIRK method of Norsett", SDIRK54 (Hairer-
+    # Wanner II, Table IV.6.5), TR-BDF2 "2nd-order, L-stable DIRK method of Bank et al."
+    "BE": 1, "GL2": 4, "GL3": 6, "RadauIIA2": 3, "RadauIIA3": 5, "LobattoIIIA2": 2,
+    "LobattoIIIA3": 4, "LobattoIIIC2": 2, "LobattoIIIC3": 4, "LobattoIIIC4": 6,
+    "SDIRK23": 3, "SDIRK34": 4, "SDIRK54": 4, "TR-BDF2": 2,
+}
+#: Where nodepy's data disagree with its own statement (see test_nodepy_disagreements).
+NODEPY_DISAGREE = {"SS3", "SSP53"}
+
+
+@pytest.fixture(scope="module")
+def nodepy_methods():
+    rkm = pytest.importorskip("nodepy.runge_kutta_method")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return rkm, rkm.loadRKM("All")
+
+
+def _forms(A, b):
+    """The tableau as stored (exact sympy where nodepy has it), as Fractions, as floats."""
+    yield "floats", floats(A), floats([b])[0]
+    if all(isinstance(x, sp.Basic) for x in [*np.ravel(A), *b]):
+        yield "exact", [list(r) for r in A], list(b)
+        if all(sp.sympify(x).is_Rational for x in [*np.ravel(A), *b]):
+            yield "fractions", [[Fraction(str(x)) for x in r] for r in A], [Fraction(str(x)) for x in b]
+
+
+def test_nodepy_stated_orders(nodepy_methods):
+    _, library = nodepy_methods
+    checked = 0
+    for key, stated in NODEPY_STATED.items():
+        m = library[key]
+        pairs = [(m.b, stated if isinstance(stated, int) else stated[0])]
+        if not isinstance(stated, int):
+            pairs.append((m.bhat, stated[1]))
+        for weights, p in pairs:
+            for form, A, b in _forms(m.A, weights):
+                family = "explicit_rk" if m.is_explicit() else "implicit_rk"
+                assert derive.order(rk_method(A, b, key, family)) == p, (key, form)
+            checked += m.is_explicit()
+    assert checked >= 45
+
+
+#: nodepy's constructors with the order their docstrings state.
+def _families(rkm):
+    out = {f"SSPRK2({m})": (rkm.SSPRK2(m), 2) for m in (2, 3, 4, 5)}
+    out.update({f"SSPRK3({m})": (rkm.SSPRK3(m), 3) for m in (4, 9)})
+    out.update({f"extrap({k})": (rkm.extrap(k), k) for k in (2, 3, 4, 5)})          # Euler base
+    out.update({f"extrap({k},midpoint)": (rkm.extrap(k, "midpoint"), 2 * k) for k in (2, 3)})
+    out.update({f"DC({s})": (rkm.DC(s), s + 1) for s in (1, 2, 3)})                 # deferred correction
+    out.update({f"RKC1({m})": (rkm.RKC1(m), 1) for m in (2, 3, 5)})
+    out.update({f"RKC2({m})": (rkm.RKC2(m), 2) for m in (2, 3, 5)})
+    out["RK44_family(1)"] = (rkm.RK44_family(1), 4)
+    return out
+
+
+def test_nodepy_families(nodepy_methods):
+    rkm, _ = nodepy_methods
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        families = _families(rkm)
+    for key, (m, p) in families.items():
+        for form, A, b in _forms(m.A, m.b):
+            assert derive.order(rk_method(A, b, key)) == p, (key, form)
+
+
+def test_nodepy_disagreements(nodepy_methods):
+    _, library = nodepy_methods
+    # SS3 "Sharp-Smart RK3(2)4": nodepy stores the order-2 weights as b and the order-3
+    # ones as bhat (its own order() also gives 2 for b)
+    ss3 = library["SS3"]
+    assert derive.order(rk_method(ss3.A.tolist(), list(ss3.b))) == 2
+    assert derive.order(rk_method(ss3.A.tolist(), list(ss3.bhat))) == 3
+    # SSP53 (Ruuth-Spiteri SSP(5,3)) is stored with 14 decimals that are off by ~1e-10:
+    # sum b - 1 = 3.2e-10, far above round-off: as given it is not even consistent
+    ssp53 = library["SSP53"]
+    b = floats([ssp53.b])[0]
+    assert abs(sum(b) - 1) > 1e-10
+    assert derive.order(rk_method(floats(ssp53.A), b)) == 0
+
+
+def test_nodepy_own_order_as_second_opinion(nodepy_methods):
+    _, library = nodepy_methods
+    for key in NODEPY_STATED:
+        m = library[key]
+        ours = derive.order(rk_method(floats(m.A), floats([m.b])[0], key))
+        # nodepy's order() uses an absolute tolerance of 1e-14; Tsit5's fifth-order
+        # conditions have terms up to 2.5e6 and residuals of 1.4e-14 (round-off): a
+        # tolerance of 1e-13 gives 5, as stated
+        theirs = m.order(tol=1e-13) if key == "Tsit5" else m.order()
+        assert ours == theirs, key
+
+
+def test_order_of_13_stage_tableaux_is_fast(nodepy_methods):
+    """Worst cases: every condition through order 9 evaluated on dense 13 x 13 tableaux."""
+    _, library = nodepy_methods
+    pd8 = library["PD8"]                               # Prince-Dormand 8(7), 13 stages, floats
+    start = time.perf_counter()
+    assert derive.order(rk_method(floats(pd8.A), floats([pd8.b])[0], "pd8")) == 8
+    float_time = time.perf_counter() - start
+    # collocation at 13 equispaced rational nodes (implicit, dense, exact): order >= 13
+    t = sp.Symbol("t")
+    nodes = [sp.Rational(i, 12) for i in range(13)]
+    lagrange = [sp.prod([(t - ck) / (cj - ck) for ck in nodes if ck != cj]) for cj in nodes]
+    antider = [sp.Poly(sp.expand(lj), t).integrate() for lj in lagrange]
+    A = [[L.eval(ci) for L in antider] for ci in nodes]
+    b = [L.eval(1) for L in antider]
+    start = time.perf_counter()
+    with pytest.raises(ValueError, match="order > 8"):
+        derive.order(rk_method(A, b, "collocation13", "implicit_rk"))
+    exact_time = time.perf_counter() - start
+    print(f"13 stages: PD8 floats {float_time:.3f} s, dense exact collocation {exact_time:.3f} s")
+    assert float_time < 10 and exact_time < 10

@@ -22,7 +22,7 @@ _EPS = float(np.finfo(float).eps)
 
 
 def exact(value) -> sp.Expr | None:
-    """The exact sympy number a coefficient stands for, or ``None`` for a float.
+    """Return the exact sympy number a coefficient stands for, or ``None`` for a float.
 
     Raises
     ------
@@ -63,7 +63,7 @@ def exact(value) -> sp.Expr | None:
 
 
 def display(value) -> sp.Expr:
-    """A coefficient for printed series: exact if given exactly, else the float itself.
+    """Return a coefficient for printed series: exact if given exactly, else the float.
 
     A float becomes a fraction only when that fraction rounds to exactly this float
     (``0.5`` -> ``1/2``, ``1/6`` -> ``1/6``); any other float stays a sympy ``Float``.
@@ -112,7 +112,7 @@ class Arithmetic:
         return list(self._converted)
 
     def rational(self, num: int, den: int):
-        """The number ``num/den`` in this arithmetic."""
+        """Return the number ``num/den`` in this arithmetic."""
         if self.is_exact:
             return self.domain.from_sympy(sp.Rational(num, den))
         return num / den

@@ -110,7 +110,7 @@ class _Weights:
 
 
 def _coloured(tree: tuple) -> tuple:
-    """A plain tree as a one-colour tree ``("y", children)``."""
+    """Recolour a plain tree as a one-colour tree ``("y", children)``."""
     return ("y", tuple(_coloured(child) for child in tree))
 
 

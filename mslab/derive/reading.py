@@ -62,7 +62,7 @@ class Reading:
     method: object = None
 
     def key(self) -> tuple:
-        """A hashable key: equal for equal coefficients (a run is keyed by its object)."""
+        """Return a hashable key, equal for equal coefficients (a run is keyed by its object)."""
         if self.kind == "run":
             return ("run", self.name, id(self.method))
         return (self.kind, self.name, repr((self.A, self.b, self.drift, self.kick)))

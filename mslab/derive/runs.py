@@ -81,7 +81,7 @@ def _obj(value) -> np.ndarray:
 
 
 def run_series(method, n: int, two_step: bool) -> tuple[sp.Expr, ...]:
-    """The method's own step on ``x'' = a(x)`` through ``h^n``.
+    """Run the method's own step on ``x'' = a(x)`` through ``h^n``.
 
     Two-step methods are fed the exact ``x(t - h), x(t)`` and return ``(x_{n+1},)``; the
     others start from ``(x, v)`` and return ``(x_{n+1}, v_{n+1})``.

@@ -57,7 +57,7 @@ def trunc(expr, n: int) -> sp.Expr:
 
 
 def coeff(expr, k: int) -> sp.Expr:
-    """The coefficient of ``h^k`` in ``expr``."""
+    """Return the coefficient of ``h^k`` in ``expr``."""
     return sp.expand(expr).coeff(h, k)
 
 
@@ -79,7 +79,7 @@ def _total_derivative(expr, chain: dict):
 
 
 def derivatives(n: int, problem: str = "first") -> list:
-    """The first ``n`` time derivatives of the exact solution at t_n.
+    """Return the first ``n`` time derivatives of the exact solution at t_n.
 
     ``problem="first"``: ``y', y'', ...`` of ``y' = f(y)`` in ``f, f', ...``
     (``y'' = f' f``, ``y''' = f'' f^2 + f'^2 f``, ...).

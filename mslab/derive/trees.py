@@ -22,7 +22,7 @@ Tree = tuple  # tuple of subtrees (plain) or (colour, tuple of subtrees) (Nystr�
 
 @cache
 def size(tree: Tree) -> int:
-    """Number of vertices ``|t|`` of a plain tree."""
+    """Return the number of vertices ``|t|`` of a plain tree."""
     return 1 + sum(size(child) for child in tree)
 
 
@@ -85,5 +85,5 @@ def _x_trees(order: int) -> tuple[Tree, ...]:
 
 @cache
 def plain(tree: Tree) -> Tree:
-    """A Nyström tree with its colours forgotten (for ``|t|`` and ``gamma``)."""
+    """Forget the colours of a Nyström tree (for ``|t|`` and ``gamma``)."""
     return tuple(sorted((plain(child) for child in tree[1]), key=lambda t: (size(t), t), reverse=True))
