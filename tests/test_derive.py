@@ -185,6 +185,11 @@ DP5_A = [[0] * 7, ["1/5", 0, 0, 0, 0, 0, 0], ["3/40", "9/40", 0, 0, 0, 0, 0],
 DP5_B = ["35/384", 0, "500/1113", "125/192", "-2187/6784", "11/84", 0]
 
 
+def test_the_issues_two_stage_example_as_an_explicit_rk():
+    a = 1 / np.sqrt(2)                    # order 2, was reported 1
+    assert derive.order(mslab.ExplicitRK([[0, 0], [a, 0]], [1 - 1 / (2 * a), 1 / (2 * a)])) == 2
+
+
 @pytest.mark.parametrize("form", ["strings", "fractions", "sympy", "floats"])
 def test_dopri5_in_every_form_has_order_5(form):
     if form == "strings":

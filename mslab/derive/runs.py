@@ -18,35 +18,59 @@ from mslab.derive.series import F, compose, h, taylor, trunc, v, x, y
 from mslab.state import State
 
 
+def _placeholders(values: list[sp.Expr], subs: dict) -> list[sp.Expr]:
+    """Irrational coefficients replaced by symbols (kept in ``subs``): the series stay cheap."""
+    out = []
+    for value in values:
+        if value.is_Rational or value.is_Float:
+            out.append(value)
+        else:
+            out.append(subs.setdefault(value, sp.Symbol(f"_c{len(subs)}")))
+    return out
+
+
+def _restore(expr: sp.Expr, subs: dict) -> sp.Expr:
+    return sp.expand(expr.xreplace({s: value for value, s in subs.items()})) if subs else expr
+
+
 def _explicit(A: list[list[sp.Expr]]) -> bool:
     return all(A[i][j] == 0 for i in range(len(A)) for j in range(i, len(A)))
 
 
 def rk_series(A, b, n: int) -> sp.Expr:
     """``y_{n+1}`` of the tableau ``A, b`` on ``y' = f(y)`` through ``h^n``."""
+    subs: dict = {}
     Ad = [[display(a) for a in row] for row in A]
     bd = [display(w) for w in b]
+    explicit = _explicit(Ad)
+    if explicit:  # an implicit tableau needs its products simplified as it sweeps
+        Ad = [_placeholders(row, subs) for row in Ad]
+        bd = _placeholders(bd, subs)
     s = len(bd)
 
     stages = [y] * s
     slopes = [F[0]] * s
     # explicit: one sweep in stage order; implicit: sweep k fixes the h^k terms
-    for k in [n] if _explicit(Ad) else range(1, n + 1):
+    for k in [n] if explicit else range(1, n + 1):
         for i in range(s):
             stages[i] = trunc(y + h * sum((Ad[i][j] * slopes[j] for j in range(s) if Ad[i][j] != 0),
                                           sp.Integer(0)), k)
             slopes[i] = compose(F, y, stages[i], k)
-    return trunc(y + h * sum((bi * ki for bi, ki in zip(bd, slopes, strict=True)), sp.Integer(0)), n)
+    y1 = y + h * sum((bi * ki for bi, ki in zip(bd, slopes, strict=True)), sp.Integer(0))
+    return _restore(trunc(y1, n), subs)
 
 
 def splitting_series(drift, kick, n: int) -> tuple[sp.Expr, sp.Expr]:
     """``(x_{n+1}, v_{n+1})`` of the drift-first splitting on ``x'' = a(x)`` through ``h^n``."""
+    subs: dict = {}
+    drift = _placeholders([display(a) for a in drift], subs)
+    kick = _placeholders([display(b) for b in kick], subs)
     xs, vs = x, v
     for i, a in enumerate(drift):
-        xs = trunc(xs + display(a) * h * vs, n)
+        xs = trunc(xs + a * h * vs, n)
         if i < len(kick):
-            vs = trunc(vs + display(kick[i]) * h * compose(A_SYM, x, xs, n), n)
-    return xs, vs
+            vs = trunc(vs + kick[i] * h * compose(A_SYM, x, xs, n), n)
+    return _restore(xs, subs), _restore(vs, subs)
 
 
 class _Counters:
