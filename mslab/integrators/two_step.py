@@ -1,8 +1,8 @@
 """Verlet (two-step position form) and leapfrog (staggered velocities): adapters over a splitting.
 
 Both produce the positions of velocity Verlet, the splitting ``drift = [0, 1, 0],
-kick = [1/2, 1/2]`` (their ``splitting`` attribute; :mod:`mslab.derive` reads its
-coefficients), but carry a different state between steps and so start differently and
+kick = [1/2, 1/2]`` (their ``splitting`` attribute; :mod:`mslab.derive` takes its order
+from that splitting's coefficients and expands their own step), but carry a different state between steps and so start differently and
 report velocities their own way, as the course writes them (seed eqs. 21-26). Each
 keeps its documented start-up step and second-order velocity estimate.
 """
@@ -40,7 +40,6 @@ class Verlet(Integrator):
 
     def __init__(self, name: str, order: int, splitting: Integrator):
         self.name, self.order, self.splitting = name, order, splitting
-        self.coefficients = splitting.coefficients
 
     @property
     def compiled(self):
@@ -94,7 +93,6 @@ class Leapfrog(Integrator):
 
     def __init__(self, name: str, order: int, splitting: Integrator):
         self.name, self.order, self.splitting = name, order, splitting
-        self.coefficients = splitting.coefficients
 
     @property
     def compiled(self):
