@@ -80,6 +80,7 @@ class Progress:
         self.enabled = is_terminal(self.stream) if enabled is None else bool(enabled)
         self.total, self.desc, self.unit = total, desc, unit
         self.n = 0
+        self._first = None  # (time, count) after the first update: one-time costs end there
         self.delay, self.interval = delay, interval
         self.on_estimate, self.estimate_after = on_estimate, estimate_after
         self.start = time.perf_counter()
@@ -95,6 +96,8 @@ class Progress:
     def update(self, n: int = 1) -> None:
         """``n`` more units done (cheap: called once per step by ``simulate``)."""
         self.n += n
+        if self._first is None:
+            self._first = (time.perf_counter(), self.n)
 
     def describe(self, desc: str, total: int | None = None) -> None:
         """Change what the line says is being done (and, optionally, the total)."""
@@ -107,10 +110,22 @@ class Progress:
         return time.perf_counter() - self.start
 
     def estimate(self) -> float | None:
-        """Estimated total seconds from the rate so far (None before the first unit)."""
-        if not self.total or self.n <= 0:
+        """Estimated total seconds from the rate so far (None before the first unit).
+
+        The rate is measured after the first update, so a slow first unit (imports,
+        compilation, caches) counts once, not once per unit.
+        """
+        if not self.total or self.n <= 0 or self._first is None:
             return None
-        return self.elapsed * self.total / self.n
+        now = time.perf_counter()
+        t1, n1 = self._first
+        if self.n <= n1 or now - t1 <= 0:
+            return (now - self.start) * self.total / self.n
+        return (t1 - self.start) + (now - t1) * (self.total - n1) / (self.n - n1)
+
+    def measured(self) -> int:
+        """Units the current rate was measured on (after the first update)."""
+        return self.n - self._first[1] if self._first is not None else 0
 
     def line(self) -> str:
         """The text of the progress line."""
@@ -124,6 +139,8 @@ class Progress:
             eta = f", about {duration(max(0.0, left - elapsed))} left" if left is not None else ""
             return (f"{head}[{bar}] {100 * frac:3.0f}% {self.n}/{self.total} {self.unit}s "
                     f"({duration(elapsed)}{eta})")
+        if self.n == 0:
+            return f"{head}... ({duration(elapsed)})"
         return f"{head}{self.n} {self.unit}s ({duration(elapsed)})"
 
     # -- drawing ----------------------------------------------------------------------------------
@@ -131,7 +148,7 @@ class Progress:
         estimated = self.on_estimate is None
         while not self._stop.wait(self.interval):
             elapsed = self.elapsed
-            if not estimated and elapsed >= self.estimate_after and self.n > 0:
+            if not estimated and elapsed >= self.estimate_after and self.measured() > 0:
                 estimated = True
                 total = self.estimate()
                 if total is not None and total - elapsed > 1.0:
@@ -158,6 +175,7 @@ class Progress:
         """Print a line above the progress line (on ``file``, default the bar's stream)."""
         with self._lock:
             self._clear()
+            sys.stdout.flush()  # lines already printed on stdout come first
             target = self.stream if file is None else file
             print(text, file=target, flush=True)
             self.shown = False

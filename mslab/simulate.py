@@ -242,6 +242,8 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
     def finish(k: int, complete: bool) -> Trajectory:
         energies(k)
         t = saved[:k] * dt
+        if k == n_saved:  # the whole run: hand the arrays over, no copy (memory budget: 1 x)
+            return Trajectory(t, xs, vs, Energy(ks, ps, ds), stats, complete, scene.name)
         return Trajectory(t, xs[:k].copy(), vs[:k].copy(), Energy(ks[:k].copy(), ps[:k].copy(),
                           ds[:k].copy()), stats, complete, scene.name)
 
@@ -336,7 +338,7 @@ def _hint(stable_dt: float | None) -> str:
     if stable_dt is None:
         return "; try a smaller dt or an implicit method"
     if stable_dt == 0:
-        return "; the method is predicted unstable at every dt on this scene (no step limit helps)"
+        return "; no dt is stable for this method on this scene: try an implicit or symplectic method"
     return f"; predicted stable dt = {stable_dt:.4g}"
 
 
@@ -374,7 +376,8 @@ def _check_stability(scene: Scene, integrator: Integrator, dt: float, stable_dt:
 
     predicted = predicted_stable_dt(scene, integrator)
     if predicted is not None and dt > predicted:
-        what = (f"{integrator.name} is unstable at every dt on this scene (undamped oscillations grow)"
+        what = (f"{integrator.name} has no stable dt on this scene: its undamped oscillations grow "
+                f"at every dt (slowly when dt is small)"
                 if predicted == 0 else f"dt = {dt:g} exceeds the predicted stable dt = {predicted:.4g} "
                 f"of {integrator.name} ({dt / predicted:.3g} x)")
         warnings.warn(f"{what}; the run may blow up", StabilityWarning, stacklevel=4)

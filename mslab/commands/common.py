@@ -69,6 +69,42 @@ def out_dir(args, default: str | None = None) -> Path | None:
     return path
 
 
+def out_path(args, default: str | None = None) -> Path | None:
+    """The --out folder, not created yet (files create it as they are written), or None.
+
+    A run interrupted before it wrote anything leaves no empty folder behind.
+    """
+    folder = getattr(args, "out", None) or default
+    return None if folder is None else Path(folder)
+
+
+def add_budget_option(parser) -> None:
+    """``--max-memory SIZE``: the memory budget of a run's saved data."""
+    parser.add_argument("--max-memory", dest="max_memory", metavar="SIZE", default=None,
+                        help="refuse a run whose saved data exceed SIZE (e.g. 2G, 500M; "
+                             "default: half the available memory)")
+
+
+def memory_budget(args) -> tuple[int | None, str]:
+    """The budget in bytes from ``--max-memory`` (or the default) and where it comes from."""
+    from mslab.budget import DEFAULT_FRACTION, default_budget, parse_size
+
+    given = getattr(args, "max_memory", None)
+    if given is not None:
+        try:
+            return parse_size(given), "--max-memory"
+        except ValueError as err:
+            raise CommandError(str(err), key="--max-memory") from None
+    return default_budget(), f"{DEFAULT_FRACTION:.0%} of the available memory; --max-memory to change"
+
+
+def method_help(what: str = "integrator") -> str:
+    """``--method`` help text listing the registered methods."""
+    from mslab.integrators.base import methods
+
+    return f"{what}: {', '.join(methods())} (details: `mslab methods`)"
+
+
 def atomic_write(path: str | Path, write: Callable[[str], None], suffix: str | None = None) -> Path:
     """Call ``write(tmp_path)``, then rename tmp to ``path``: readers never see a half file.
 
