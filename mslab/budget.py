@@ -143,13 +143,14 @@ def memory_problem(cost: RunCost, budget: int | None, budget_name: str = "") -> 
 
 
 def time_per_step(scene, method: str | None = None, dt: float | None = None, *,
-                  seconds: float = 0.3, max_steps: int = 200) -> tuple[float, int]:
-    """Seconds per step measured on the first steps of a run, and how many were timed.
+                  seconds: float = 0.3, max_steps: int = 100_000) -> tuple[float, int]:
+    """Seconds per step measured on the first steps of a run, and how many steps were timed.
 
-    One untimed step first (it pays compilation and first-call costs), then steps until
-    ``seconds`` have passed or ``max_steps`` were taken (at least one: a scene of slow
-    steps costs two of them). Warnings and blow-ups of these few steps are ignored: they
-    are the run's business.
+    One untimed step first (it pays compilation and first-call costs), then runs of 1, 2,
+    4, ... steps until one takes ``seconds / 2`` (or ``max_steps``); the time per step is the
+    slope between the one-step run and the last one, so the fixed cost of starting a run
+    stays out. A scene of slow steps costs about three of them. Warnings and blow-ups of
+    these few steps are ignored: they are the run's business.
     """
     from mslab.errors import InstabilityError, StabilityWarning
     from mslab.integrators.base import get_method
@@ -157,17 +158,22 @@ def time_per_step(scene, method: str | None = None, dt: float | None = None, *,
 
     dt = float(scene.settings.dt if dt is None else dt)
     method = get_method(scene.settings.method if method is None else method)
+
+    def timed(n: int) -> float:
+        start = time.perf_counter()
+        simulate(scene, method, dt, n * dt, n, progress=False, check_stability=False)
+        return time.perf_counter() - start
+
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", StabilityWarning)
         try:
-            simulate(scene, method, dt, dt, 1, progress=False, check_stability=False)
-            n, spent, taken = 1, 0.0, 0
-            while spent < seconds and taken < max_steps:
-                start = time.perf_counter()
-                simulate(scene, method, dt, n * dt, n, progress=False, check_stability=False)
-                spent += time.perf_counter() - start
-                taken += n
-                n = min(2 * n, max_steps - taken) or 1
+            timed(1)
+            one = last = timed(1)
+            n = 1
+            while last < seconds / 2 and 2 * n <= max_steps:
+                n *= 2
+                last = timed(n)
         except InstabilityError:
             return math.nan, 0
-    return spent / taken, taken
+    slope = (last - one) / (n - 1) if n > 1 else one
+    return (slope if slope > 0 else last / n), n

@@ -38,7 +38,9 @@ def is_terminal(stream: TextIO) -> bool:
 
 
 def duration(seconds: float) -> str:
-    """``"0.4 s"``, ``"38 s"``, ``"4 min 10 s"``, ``"2 h 05 min"``."""
+    """``"13 ms"``, ``"4.2 s"``, ``"38 s"``, ``"4 min 10 s"``, ``"2 h 05 min"``."""
+    if seconds < 1:
+        return f"{seconds * 1e3:.2g} ms" if seconds < 0.01 else f"{seconds * 1e3:.0f} ms"
     if seconds < 10:
         return f"{seconds:.1f} s"
     if seconds < 60:
