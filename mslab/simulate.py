@@ -167,9 +167,11 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
     energy_blowup : float
         A run whose energy ledger ``K + U + D`` grows by more than this many times the
         scene's energy scale (:func:`initial_energy_scale`, from the initial state) is
-        unstable too, even with bounded positions; checked at every saved sample (the
-        compiled loop: after each chunk of steps), and the run stops there, so the error's
-        step, time and the counted work describe the same stopping point.
+        unstable too, even with bounded positions; checked over the saved samples once the
+        run is through (a position blow-up stops the run first). The run is then reported
+        as stopped at the first sample that grew: the error's step and time, ``stats``
+        (steps, work and wall time counted up to that sample) and the kept samples all
+        describe that one stopping point.
     stable_dt : float, optional
         Predicted stable step, quoted in the InstabilityError message.
     backend : {"auto", "numba", "numpy"}, optional
@@ -219,7 +221,8 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
     limit = blowup * (1.0 + float(np.max(np.abs(scene.state0.x))))
     stats = Stats(method=integrator.name, dt=dt)
     runner = fast.stepper(system, integrator, backend)
-    scale = initial_energy_scale(scene)  # 0: the run's own scale, checked once it is through
+    scale = initial_energy_scale(scene)  # 0: the run's own scale
+    marks: list = [None] * n_saved  # (time, counters) when each sample was saved: where a run stops
     filled = 0  # samples [0, filled) have their kinetic and potential energy in ks, ps
 
     def energies(k: int) -> None:
@@ -247,15 +250,20 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
         return Trajectory(t, xs[:k].copy(), vs[:k].copy(), Energy(ks[:k].copy(), ps[:k].copy(),
                           ds[:k].copy()), stats, complete, scene.name)
 
-    def energy_error(step: int, k: int, j: int) -> InstabilityError:
-        """Stopped at ``step`` = saved[j], whose sample grew (work counted to it, samples [0, k) kept)."""
-        _close(stats, system, before, start, step, bar if own_bar else None)
+    def energy_error(j: int) -> InstabilityError:
+        """The run is reported as stopped at sample j, whose ledger grew: steps, time and the
+        work counted up to that sample (samples [0, j) kept)."""
+        step = int(saved[j])
+        seconds, counted = marks[j]
+        stats.wall_time, stats.steps = seconds - start, step
+        for key, value in counted.items():
+            setattr(stats, key, value - before[key])
         growth = (ks[j] + ps[j] + ds[j] - (ks[0] + ps[0] + ds[0])) / scale
         return InstabilityError(
             f"{integrator.name} blew up by step {step} (t = {step * dt:.6g}, dt = {dt:g}): the state "
             f"stayed finite but the energy ledger K + U + D grew by {growth:.3g} x the scene's "
             f"energy scale{_hint(stable_dt)}", method=integrator.name, step=step, t=step * dt, dt=dt,
-            stable_dt=stable_dt, trajectory=finish(k, False))
+            stable_dt=stable_dt, trajectory=finish(j, False))
 
     from mslab.progress import make_progress
 
@@ -268,35 +276,33 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
     try:
         state = integrator.start(system, scene.state0, dt)
         xs[0], vs[0], ds[0] = state.x, state.v, state.dissipated
+        marks[0] = (time.perf_counter(), system.counters.snapshot())
         k = 1
         while runner is not None and step < n_steps:  # compiled loop, in chunks (Ctrl-C, progress)
             done, k_done = step, k
+            t0, c0 = time.perf_counter(), system.counters.snapshot()
             step, k, state, ok = runner.advance(state, dt, step, min(n_steps, step + runner.chunk),
                                                 saved, k, xs, vs, ds, limit)
-            if bar is not None:
-                bar.update(step - done)
-            j = grown(k_done, k if ok else int(np.searchsorted(saved, step - 1, side="right")))
-            if j is not None:  # stop where the numpy loop stops: at sample j
-                stop = int(saved[j])
-                # the compiled steps past it cost exactly n_stages force evaluations each
-                system.counters.n_force -= runner.n_stages * (step - stop)
-                raise _EnergyStop(stop, j, j)
+            t1 = time.perf_counter()
+            for i in range(k_done, k):  # n_stages force evaluations per compiled step, exactly
+                part = (saved[i] - done) / max(step - done, 1)
+                marks[i] = (t0 + part * (t1 - t0),
+                            {**c0, "n_force": c0["n_force"] + runner.n_stages * int(saved[i] - done)})
             if not ok:
                 raise FloatingPointError
+            if bar is not None:
+                bar.update(step - done)
         for step in range(1, n_steps + 1) if runner is None else ():
             state = integrator.step(system, state, dt)
             if saved[k] == step:
                 xs[k], vs[k], ds[k] = state.x, state.v, state.dissipated
+                marks[k] = (time.perf_counter(), system.counters.snapshot())
                 k += 1
             if not (np.isfinite(state.x).all() and np.isfinite(state.v).all()
                     and np.abs(state.x).max() < limit):
                 raise FloatingPointError
-            if saved[k - 1] == step and grown(k - 1, k) is not None:
-                raise _EnergyStop(step, k - 1, k - 1)
             if bar is not None:
                 bar.update(1)
-    except _EnergyStop as stop:
-        raise energy_error(*stop.args) from None
     except FloatingPointError:  # step `step` failed: its work is counted, the run stops there
         _close(stats, system, before, start, step, bar if own_bar else None)
         k = int(np.searchsorted(saved, step - 1, side="right"))
@@ -316,17 +322,13 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
         _close(stats, system, before, start, step - 1, bar if own_bar else None)
         raise SimulationInterrupted(finish(k, False)) from None
     _close(stats, system, before, start, n_steps, bar if own_bar else None)
-    traj = finish(k, True)
-    if scale <= 0:  # nothing to compare with from the start: the run's own scale, afterwards
-        first = _energy_blowup_index(traj.energy, energy_blowup, traj.energy.energy_scale())
-        if first is not None:
-            scale = traj.energy.energy_scale()
-            raise energy_error(n_steps, k, first)
-    return traj
-
-
-class _EnergyStop(Exception):
-    """Internal: the energy check stopped the run at (step, samples kept, sample that grew)."""
+    if scale <= 0:  # nothing to compare with from the initial state: the run's own scale
+        energies(k)
+        scale = Energy(ks, ps, ds).energy_scale()
+    j = grown(0, k)
+    if j is not None:
+        raise energy_error(j)
+    return finish(k, True)
 
 
 def xs_bytes(shape: tuple) -> int:
