@@ -14,7 +14,8 @@ from mslab.commands.common import CommandError
 from mslab.errors import MslabError
 
 #: subcommand modules in mslab.commands, in the order ``mslab --help`` lists them
-COMMANDS = ("scenes", "run", "compare", "precision", "stability", "validate", "grade", "release", "bench")
+COMMANDS = ("scenes", "methods", "run", "compare", "precision", "stability", "validate", "grade", "release",
+            "bench")
 
 
 class _Parser(argparse.ArgumentParser):

@@ -19,7 +19,6 @@ Decisions (documented in the README):
 
 from __future__ import annotations
 
-import sys
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -159,15 +158,20 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
         Step and end time (``t_end/dt`` a whole number); defaults from the scene.
     save_every : int, optional
         Keep every n-th state (and always the last one).
-    progress : bool or None
-        Show a tqdm progress bar; None: only on a terminal for runs of many steps.
+    progress : bool, None or object with ``update(n)``
+        Progress by the clock (:class:`mslab.progress.Progress`): None shows it on a
+        terminal once the run has taken about 2 s, True always, False never; an object
+        (a sweep's shared bar) receives ``update(n_steps_done)`` and is not closed here.
     blowup : float
         A position beyond ``blowup * (1 + scene size)`` counts as a blow-up.
     energy_blowup : float
         A run whose energy ledger ``K + U + D`` grows by more than this many times the
         scene's energy scale (:func:`initial_energy_scale`, from the initial state) is
         unstable too, even with bounded positions; checked over the saved samples once the
-        run is through.
+        run is through (a position blow-up stops the run first). The run is then reported
+        as stopped at the first sample that grew: the error's step and time, ``stats``
+        (steps, work and wall time counted up to that sample) and the kept samples all
+        describe that one stopping point.
     stable_dt : float, optional
         Predicted stable step, quoted in the InstabilityError message.
     backend : {"auto", "numba", "numpy"}, optional
@@ -208,28 +212,62 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
     saved = _save_indices(n_steps, save_every)
     n_saved = saved.size
     shape = (n_saved,) + scene.state0.x.shape
-    xs, vs = np.empty(shape), np.empty(shape)
-    ds = np.empty(n_saved)
+    try:
+        xs, vs = np.empty(shape), np.empty(shape)
+    except MemoryError:
+        raise MemoryError(f"the {n_saved} saved samples need {2 * xs_bytes(shape) / 2**30:.3g} GiB; "
+                          f"use a larger save_every or a shorter t_end") from None
+    ds, ks, ps = np.empty(n_saved), np.empty(n_saved), np.empty(n_saved)
     limit = blowup * (1.0 + float(np.max(np.abs(scene.state0.x))))
     stats = Stats(method=integrator.name, dt=dt)
     runner = fast.stepper(system, integrator, backend)
+    scale = initial_energy_scale(scene)  # 0: the run's own scale
+    marks: list = [None] * n_saved  # (time, counters) when each sample was saved: where a run stops
+    filled = 0  # samples [0, filled) have their kinetic and potential energy in ks, ps
+
+    def energies(k: int) -> None:
+        nonlocal filled
+        if runner is not None and k > filled:
+            ks[filled:k], ps[filled:k] = runner.model.energies(xs[filled:k], vs[filled:k])
+        for i in range(filled, k) if runner is None else ():
+            ks[i], ps[i] = system.kinetic_energy(vs[i]), system.potential_energy(xs[i])
+        filled = max(filled, k)
+
+    def grown(first: int, k: int) -> int | None:
+        """First sample in [first, k) whose ledger grew past ``energy_blowup`` x the scale."""
+        if scale <= 0:
+            return None
+        energies(k)
+        growth = (ks[first:k] + ps[first:k] + ds[first:k] - (ks[0] + ps[0] + ds[0])) / scale
+        over = np.flatnonzero(~(growth <= energy_blowup))  # NaN counts as over
+        return first + int(over[0]) if over.size else None
 
     def finish(k: int, complete: bool) -> Trajectory:
+        energies(k)
         t = saved[:k] * dt
-        if runner is not None:
-            kin, pot = runner.model.energies(xs[:k], vs[:k])
-        else:
-            kin = np.array([system.kinetic_energy(vs[i]) for i in range(k)])
-            pot = np.array([system.potential_energy(xs[i]) for i in range(k)])
-        return Trajectory(t, xs[:k].copy(), vs[:k].copy(), Energy(kin, pot, ds[:k].copy()), stats,
-                          complete, scene.name)
+        if k == n_saved:  # the whole run: hand the arrays over, no copy (memory budget: 1 x)
+            return Trajectory(t, xs, vs, Energy(ks, ps, ds), stats, complete, scene.name)
+        return Trajectory(t, xs[:k].copy(), vs[:k].copy(), Energy(ks[:k].copy(), ps[:k].copy(),
+                          ds[:k].copy()), stats, complete, scene.name)
 
-    if progress is None:
-        progress = n_steps >= 20000 and sys.stderr.isatty()
-    bar = None
-    if progress:
-        from tqdm import tqdm
-        bar = tqdm(total=n_steps, desc=integrator.name, unit="step", file=sys.stderr, leave=False)
+    def energy_error(j: int) -> InstabilityError:
+        """The run is reported as stopped at sample j, whose ledger grew: steps, time and the
+        work counted up to that sample (samples [0, j) kept)."""
+        step = int(saved[j])
+        seconds, counted = marks[j]
+        stats.wall_time, stats.steps = seconds - start, step
+        for key, value in counted.items():
+            setattr(stats, key, value - before[key])
+        growth = (ks[j] + ps[j] + ds[j] - (ks[0] + ps[0] + ds[0])) / scale
+        return InstabilityError(
+            f"{integrator.name} blew up by step {step} (t = {step * dt:.6g}, dt = {dt:g}): the state "
+            f"stayed finite but the energy ledger K + U + D grew by {growth:.3g} x the scene's "
+            f"energy scale{_hint(stable_dt)}", method=integrator.name, step=step, t=step * dt, dt=dt,
+            stable_dt=stable_dt, trajectory=finish(j, False))
+
+    from mslab.progress import make_progress
+
+    bar, own_bar = make_progress(progress, n_steps, integrator.name)
 
     before = system.counters.snapshot()
     k = 0
@@ -238,11 +276,18 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
     try:
         state = integrator.start(system, scene.state0, dt)
         xs[0], vs[0], ds[0] = state.x, state.v, state.dissipated
+        marks[0] = (time.perf_counter(), system.counters.snapshot())
         k = 1
         while runner is not None and step < n_steps:  # compiled loop, in chunks (Ctrl-C, progress)
-            done = step
+            done, k_done = step, k
+            t0, c0 = time.perf_counter(), system.counters.snapshot()
             step, k, state, ok = runner.advance(state, dt, step, min(n_steps, step + runner.chunk),
                                                 saved, k, xs, vs, ds, limit)
+            t1 = time.perf_counter()
+            for i in range(k_done, k):  # n_stages force evaluations per compiled step, exactly
+                part = (saved[i] - done) / max(step - done, 1)
+                marks[i] = (t0 + part * (t1 - t0),
+                            {**c0, "n_force": c0["n_force"] + runner.n_stages * int(saved[i] - done)})
             if not ok:
                 raise FloatingPointError
             if bar is not None:
@@ -251,47 +296,52 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
             state = integrator.step(system, state, dt)
             if saved[k] == step:
                 xs[k], vs[k], ds[k] = state.x, state.v, state.dissipated
+                marks[k] = (time.perf_counter(), system.counters.snapshot())
                 k += 1
             if not (np.isfinite(state.x).all() and np.isfinite(state.v).all()
                     and np.abs(state.x).max() < limit):
                 raise FloatingPointError
-            if bar is not None and step % 1000 == 0:
-                bar.update(1000)
-    except FloatingPointError:
-        _close(stats, system, before, start, step - 1, bar)
+            if bar is not None:
+                bar.update(1)
+    except FloatingPointError:  # step `step` failed: its work is counted, the run stops there
+        _close(stats, system, before, start, step, bar if own_bar else None)
         k = int(np.searchsorted(saved, step - 1, side="right"))
         what = "non-finite" if not state.is_finite() else f"beyond {blowup:g} x the scene size"
-        hint = (f"; predicted stable dt = {stable_dt:.4g}" if stable_dt is not None
-                else "; try a smaller dt or an implicit method")
         raise InstabilityError(
             f"{integrator.name} blew up at step {step} (t = {step * dt:.6g}, dt = {dt:g}): "
-            f"state became {what}{hint}", method=integrator.name, step=step, t=step * dt, dt=dt,
-            stable_dt=stable_dt, trajectory=finish(k, False)) from None
+            f"state became {what}{_hint(stable_dt)}", method=integrator.name, step=step, t=step * dt,
+            dt=dt, stable_dt=stable_dt, trajectory=finish(k, False)) from None
     except StepFailure as err:
-        _close(stats, system, before, start, step - 1, bar)
+        _close(stats, system, before, start, step, bar if own_bar else None)
         k = int(np.searchsorted(saved, step - 1, side="right"))
         raise ConvergenceError(
             f"{integrator.name} failed at step {step} (t = {step * dt:.6g}, dt = {dt:g}): {err}",
             method=integrator.name, step=step, t=step * dt, dt=dt, stable_dt=stable_dt,
             trajectory=finish(k, False)) from None
     except KeyboardInterrupt:
-        _close(stats, system, before, start, step - 1, bar)
+        _close(stats, system, before, start, step - 1, bar if own_bar else None)
         raise SimulationInterrupted(finish(k, False)) from None
-    _close(stats, system, before, start, n_steps, bar)
-    traj = finish(k, True)
-    scale = initial_energy_scale(scene) or traj.energy.energy_scale()
-    first = _energy_blowup_index(traj.energy, energy_blowup, scale)
-    if first is not None:
-        step = int(saved[first])
-        growth = (traj.energy.total[first] - traj.energy.total[0]) / scale
-        hint = (f"; predicted stable dt = {stable_dt:.4g}" if stable_dt is not None
-                else "; try a smaller dt or an implicit method")
-        raise InstabilityError(
-            f"{integrator.name} blew up by step {step} (t = {step * dt:.6g}, dt = {dt:g}): the state "
-            f"stayed finite but the energy ledger K + U + D grew by {growth:.3g} x the scene's "
-            f"energy scale{hint}", method=integrator.name, step=step, t=step * dt, dt=dt,
-            stable_dt=stable_dt, trajectory=finish(first, False))
-    return traj
+    _close(stats, system, before, start, n_steps, bar if own_bar else None)
+    if scale <= 0:  # nothing to compare with from the initial state: the run's own scale
+        energies(k)
+        scale = Energy(ks, ps, ds).energy_scale()
+    j = grown(0, k)
+    if j is not None:
+        raise energy_error(j)
+    return finish(k, True)
+
+
+def xs_bytes(shape: tuple) -> int:
+    """Bytes of one float64 array of ``shape`` (the saved positions; velocities the same)."""
+    return int(np.prod(shape, dtype=np.float64)) * 8
+
+
+def _hint(stable_dt: float | None) -> str:
+    if stable_dt is None:
+        return "; try a smaller dt or an implicit method"
+    if stable_dt == 0:
+        return "; no dt is stable for this method on this scene: try an implicit or symplectic method"
+    return f"; predicted stable dt = {stable_dt:.4g}"
 
 
 def initial_energy_scale(scene: Scene) -> float:
@@ -328,7 +378,8 @@ def _check_stability(scene: Scene, integrator: Integrator, dt: float, stable_dt:
 
     predicted = predicted_stable_dt(scene, integrator)
     if predicted is not None and dt > predicted:
-        what = (f"{integrator.name} is unstable at every dt on this scene (undamped oscillations grow)"
+        what = (f"{integrator.name} has no stable dt on this scene: its undamped oscillations grow "
+                f"at every dt (slowly when dt is small)"
                 if predicted == 0 else f"dt = {dt:g} exceeds the predicted stable dt = {predicted:.4g} "
                 f"of {integrator.name} ({dt / predicted:.3g} x)")
         warnings.warn(f"{what}; the run may blow up", StabilityWarning, stacklevel=4)
@@ -337,7 +388,7 @@ def _check_stability(scene: Scene, integrator: Integrator, dt: float, stable_dt:
 
 def _close(stats: Stats, system, before: dict, start: float, steps: int, bar) -> None:
     stats.wall_time = time.perf_counter() - start
-    stats.steps = max(steps, 0)
+    stats.steps = max(steps, 0)  # steps taken; a failing step is counted with its work
     for key, value in system.counters.since(before).items():
         setattr(stats, key, value)
     if bar is not None:

@@ -76,3 +76,26 @@ BAD.update({
                            "stiffness = 1.0\n[run]"), "colliders[0].normal", "zero vector"),
     "gravity_vector_length": (("[run]", "[gravity]\ng = [0.0, 0.0, -9.81]\n[run]"), "gravity.g", "2 numbers"),
 })
+#: valid scene files whose run ``mslab run`` and ``mslab validate`` must refuse (issue 11):
+#: (replace this, with that) -> the key the error names, a word of the reason
+BAD_RUN = {
+    # 10^10 saved samples of two 2D particles: about a terabyte, over any memory budget
+    "memory": (("dt = 0.01\nt_end = 1.0", "dt = 1e-6\nt_end = 1e4\nsave_every = 1"), "run",
+               "save_every >="),
+}
+
+#: command-line mistakes of ``mslab run`` on a valid scene: extra arguments -> (key, word of the reason)
+BAD_OPTIONS = {
+    "max_memory_word": (["--max-memory", "lots"], "--max-memory", "not a memory size"),
+    "max_memory_small": (["--max-memory", "1k"], "run", "over the memory budget of 1 kB"),
+    "method": (["--method", "rk5"], "run.method", "valid methods"),
+}
+
+
+def bad_run_file(tmp_path, case: str):
+    """A valid scene file whose run is refused: (path, key, reason)."""
+    (old, new), key, reason = BAD_RUN[case]
+    assert old in BASE
+    path = tmp_path / f"{case}.toml"
+    path.write_text(BASE.replace(old, new, 1))
+    return path, key, reason

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import stat
 import sys
 import tempfile
 from collections.abc import Callable
@@ -68,24 +69,86 @@ def out_dir(args, default: str | None = None) -> Path | None:
     return path
 
 
+def out_path(args, default: str | None = None) -> Path | None:
+    """The --out folder, not created yet (files create it as they are written), or None.
+
+    A run interrupted before it wrote anything leaves no empty folder behind.
+    """
+    folder = getattr(args, "out", None) or default
+    return None if folder is None else Path(folder)
+
+
+def add_budget_option(parser) -> None:
+    """``--max-memory SIZE``: the memory budget of a run's saved data."""
+    parser.add_argument("--max-memory", dest="max_memory", metavar="SIZE", default=None,
+                        help="refuse a run whose saved data exceed SIZE (e.g. 2G, 500M; "
+                             "default: half the available memory)")
+
+
+def memory_budget(args) -> tuple[int | None, str]:
+    """The budget in bytes from ``--max-memory`` (or the default) and where it comes from."""
+    from mslab.budget import DEFAULT_FRACTION, default_budget, parse_size
+
+    given = getattr(args, "max_memory", None)
+    if given is not None:
+        try:
+            return parse_size(given), "--max-memory"
+        except ValueError as err:
+            raise CommandError(str(err), key="--max-memory") from None
+    return default_budget(), f"{DEFAULT_FRACTION:.0%} of the available memory; --max-memory to change"
+
+
+def method_help(what: str = "integrator") -> str:
+    """``--method`` help text listing the registered methods."""
+    from mslab.integrators.base import methods
+
+    return f"{what}: {', '.join(methods())} (details: `mslab methods`)"
+
+
 def atomic_write(path: str | Path, write: Callable[[str], None], suffix: str | None = None) -> Path:
     """Call ``write(tmp_path)``, then rename tmp to ``path``: readers never see a half file.
 
     The temporary file sits in the same folder (same file system, so the rename is atomic)
-    and is removed if ``write`` fails or is interrupted.
+    and is removed if ``write`` fails or is interrupted. The finished file has the mode an
+    ordinary ``open(path, "w")`` would give it (``0o666`` less the umask; an existing file
+    keeps its mode), not the ``0o600`` of the temporary file, so a course server can serve it.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    mode = _file_mode(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=suffix or path.suffix, dir=path.parent)
     os.close(fd)
     try:
         write(tmp)
+        os.chmod(tmp, mode)  # mkstemp made it 0600; the finished file gets the umask's mode
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
     return path
+
+
+def current_umask() -> int:
+    """The process's umask (read without changing it where ``/proc`` tells it)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    mask = os.umask(0o022)  # no /proc: set and restore (not thread-safe, but brief)
+    os.umask(mask)
+    return mask
+
+
+def _file_mode(path: Path) -> int:
+    """Mode for a new file at ``path``: an existing file's mode, else ``0o666 & ~umask``."""
+    try:
+        return stat.S_IMODE(os.stat(path).st_mode)
+    except OSError:
+        return 0o666 & ~current_umask()
 
 
 def save_figure(fig, path: str | Path) -> Path:

@@ -27,7 +27,8 @@ def register(subparsers) -> None:
         description="Energy drift of each method on one scene: relative error of K + U + D over time, "
                     "drift rate and a bounded-vs-drifting verdict.")
     p.add_argument("scene", metavar="SCENE", help="built-in scene name, TOML file, or 'oscillator'")
-    p.add_argument("--methods", nargs="+", metavar="M", help="methods (default: every course method)")
+    p.add_argument("--methods", nargs="+", metavar="M",
+                   help="methods (default: every course method; list: `mslab methods`)")
     p.add_argument("--dt", type=float, default=None, help="step (default: the scene's)")
     p.add_argument("--t-end", type=float, default=None,
                    help="end time (default: 10 times the scene's: drift shows only over long runs)")
@@ -50,7 +51,7 @@ def run(args) -> int:
     except ValueError as err:
         raise CommandError(str(err), key="--dt") from None
     methods = method_list(args.methods)
-    drifts = energy_drift(scene, methods, dt, t_end, progress=None)
+    drifts = energy_drift(scene, methods, dt, t_end, progress=None)  # a bar by the clock, per method
     records = [d.as_record() for d in drifts.values()]
     figures = []
     folder = out_dir(args)
@@ -64,16 +65,32 @@ def run(args) -> int:
         return 0
     rows = []
     for r in records:
-        verdict = r["verdict"] if r["complete"] else f"{r['verdict']} (blew up)"
         rows.append([r["method"], r["steps"], r["n_force"], fmt(r["wall_time"], ".3g"),
                      fmt(r["max_error"], ".2e"), fmt(r["final_error"], ".2e"), fmt(r["drift_rate"], ".2e"),
-                     verdict])
+                     verdict_text(r, dt)])
     say(args, f"{scene.name}: dt = {dt:g}, t_end = {t_end:g}")
     say(args, table(rows, ["method", "steps", "n_force", "wall_time [s]", "max |dE|/E", "final dE/E",
                            "drift [1/s]", "verdict"]))
+    say(args, "wall_time: stepping only, after a 10-step warm-up run of each method (compilation and "
+              "first-call costs excluded); steps: up to and including a failing step")
+    for r in records:
+        if r["stopped"] == "no convergence":
+            say(args, f"  {r['method']}: {r['failure']}")
     for f in figures:
         say(args, f"wrote {f}")
     return 0
+
+
+def verdict_text(record: dict, dt: float) -> str:
+    """``bounded``, ``drifting``, ``drifting: blew up at step 7 (t = 0.07)`` or
+    ``no convergence at step 1 (t = 0.01)``: a failed iteration is not an energy drift."""
+    if record["complete"]:
+        return record["verdict"]
+    step = record["steps"]
+    where = f"at step {step} (t = {step * dt:.4g})"
+    if record["stopped"] == "no convergence":
+        return f"no convergence {where}"
+    return f"{record['verdict']}: blew up {where}"
 
 
 def _figure(scene, drifts, dt, folder):

@@ -91,7 +91,8 @@ def register(subparsers) -> None:
         description="Error against dt, force evaluations and wall time for each method on one scene, "
                     "with scipy's solve_ivp (RK45, DOP853, Radau, BDF) over a tolerance sweep.")
     p.add_argument("scene", metavar="SCENE", help="built-in scene name, TOML file, or 'oscillator'")
-    p.add_argument("--methods", nargs="+", metavar="M", help="methods (default: the course's)")
+    p.add_argument("--methods", nargs="+", metavar="M",
+                   help="methods (default: the course's; list: `mslab methods`)")
     p.add_argument("--dts", nargs="+", type=float, metavar="DT",
                    help="steps (default: the scene's dt times 16, 8, 4, 2, 1); each must divide t_end")
     p.add_argument("--t-end", type=float, default=None, help="end time (default: the scene's)")
@@ -168,6 +169,9 @@ def run(args) -> int:
     header = ["method", "dt", "rtol", "steps", "n_force", "n_jac", "n_solve", "error", "error_rms",
               "wall_time [s]"]
     say(args, table(rows, header))
+    if not args.no_timing:
+        say(args, f"wall_time: stepping only, the minimum of up to {args.repeats} timed runs made after an "
+                  "untimed run of the same method (compilation and first-call costs excluded)")
     local = {r["method"]: r["local_order"] for r in sorted(records, key=lambda r: -r["dt"])
              if r["solver"] == "mslab"}   # slope between the two smallest dts
     say(args, "orders: fitted over errors below a tenth of the solution's size; local = between the two "

@@ -1,10 +1,21 @@
 """``mslab run SCENE``: simulate one scene, print work and energy ledger, save data and figures.
 
+Cheap checks come first: the options (``--animate`` and the tool it needs, ffmpeg or
+Pillow; ``--max-memory``), the scene file, and the run's size. Every run announces its
+cost before it starts (steps, saved samples and the memory they take) and is refused, in
+one line naming the ``save_every`` or ``t_end`` that would fit, when its saved data exceed
+the memory budget (default: half the available memory). The predicted stable dt (an
+eigenvalue analysis) is skipped for A-stable methods and above 5000 unknowns, as in
+``simulate``, with a note saying so. On a terminal a progress bar appears once the run has
+taken about 2 s, with an estimate of the time from the first steps; warnings are printed
+when they arise.
+
 Exit codes: 0 the run finished; 2 a mistake in the scene file or the options (one line
-``mslab: error: FILE: KEY: reason``); 3 the run blew up (InstabilityError) or an implicit
-method's iteration did not converge (ConvergenceError): one line naming step, time and dt,
-and the part computed so far is saved when ``--out`` is given; 130 interrupted (Ctrl-C),
-what was computed is saved when ``--out`` is given.
+``mslab: error: FILE: KEY: reason``), nothing computed, nothing written; 3 the run blew up
+(InstabilityError) or an implicit method's iteration did not converge (ConvergenceError):
+one line naming step, time and dt, and the part computed so far is saved when ``--out`` is
+given; 130 interrupted (Ctrl-C): what was computed is saved when ``--out`` is given, and
+nothing at all (no empty folder) when the run had not started.
 
 With ``--out DIR`` (or ``--animate``, default folder ``out/SCENE``) it writes
 ``SCENE.npz`` (t, x, v, energies, springs, stats), ``SCENE_energy.png`` (the ledger),
@@ -15,18 +26,31 @@ name and renamed, so a file that exists is complete.
 
 from __future__ import annotations
 
+import math
 import sys
 import warnings
 from pathlib import Path
 
 import numpy as np
 
-from mslab.commands.common import CommandError, add_common_options, atomic_write, emit_json, out_dir, say
+from mslab.commands.common import (
+    CommandError,
+    add_budget_option,
+    add_common_options,
+    atomic_write,
+    emit_json,
+    memory_budget,
+    method_help,
+    out_path,
+    say,
+)
 
 #: exit code of a run that blew up or whose implicit iteration failed
 EXIT_UNSTABLE = 3
 #: exit code of an interrupted run (128 + SIGINT)
 EXIT_INTERRUPTED = 130
+#: above this many unknowns (n_particles * dim) the stable-dt prediction is skipped, as in simulate
+MAX_DOFS = 5000
 
 
 def register(subparsers) -> None:
@@ -46,28 +70,92 @@ def register(subparsers) -> None:
         default=None,
         help="also write an animation (GIF through Pillow; mp4 needs ffmpeg)",
     )
+    add_budget_option(p)
     add_common_options(p)
     p.set_defaults(func=run)
 
 
 def add_settings_options(p) -> None:
     """``--method --dt --t-end --save-every``: override the scene file's [run] settings."""
-    p.add_argument("--method", default=None, help="integrator (see `mslab stability all` for the list)")
+    p.add_argument("--method", default=None, metavar="METHOD", help=method_help())
     p.add_argument("--dt", type=float, default=None, help="time step [s]")
     p.add_argument("--t-end", dest="t_end", type=float, default=None, help="end time [s]")
     p.add_argument("--save-every", dest="save_every", type=int, default=None, help="keep every n-th step")
 
 
-def predicted_dt(scene, method: str) -> float | None:
-    """Predicted largest stable step from :mod:`mslab.stability`, or None if unavailable."""
-    try:
-        from mslab.stability import max_stable_dt
-    except ImportError:
+def animation_problem(kind: str | None) -> str | None:
+    """Why ``--animate kind`` cannot be written on this machine (None: it can)."""
+    if kind is None:
         return None
-    try:
-        return float(max_stable_dt(scene, method))
-    except Exception:  # noqa: BLE001 - a prediction must never stop a run
+    if kind == "gif":
+        try:
+            import PIL  # noqa: F401
+        except ImportError:
+            return "GIF animations need Pillow, which does not import (pip install pillow)"
         return None
+    from matplotlib import animation as mpl_animation
+
+    if not mpl_animation.writers.is_available("ffmpeg"):
+        return "ffmpeg not found; install it or use --animate gif"
+    return None
+
+
+def a_stable(method) -> bool:
+    """Whether no step limit applies: A-stable coefficients and not a fixed-point iteration.
+
+    A-stable: ``|R(z)| <= 1`` on the whole negative real axis and the imaginary axis and
+    bounded oscillations at every ``dt w`` (:mod:`mslab.stability`, from the coefficients;
+    cheap). A fixed-point solver only converges below a step limit, so it never counts.
+    """
+    from mslab import stability
+
+    if method.explicit or getattr(method, "solver", None) == "fixed_point" or method.name.endswith("_fp"):
+        return False
+    return (stability.real_interval(method) == -math.inf and stability.imag_limit(method) == math.inf
+            and stability.oscillator_limit(method) == math.inf)
+
+
+def predicted_dt(scene, method: str) -> tuple[float | None, str | None]:
+    """Predicted largest stable step (None: not computed) and a note when it was skipped.
+
+    Skipped for A-stable methods (inf, no analysis needed) and above :data:`MAX_DOFS`
+    unknowns (the eigenvalue analysis would take longer than many runs). On a terminal a
+    progress line appears if the analysis takes more than about 2 s.
+    """
+    from mslab.integrators.base import get_method
+    from mslab.progress import Progress
+    from mslab.stability import predicted_stable_dt
+
+    m = get_method(method)
+    if a_stable(m):
+        return math.inf, None
+    dofs = scene.n_particles * scene.dim
+    if dofs > MAX_DOFS:
+        return None, (f"stable-dt prediction skipped: {dofs} unknowns, more than {MAX_DOFS} (as in "
+                      f"simulate); a blow-up still stops the run")
+    with Progress(None, f"predicting the stable dt of {m.name} (eigenvalues)"):
+        return predicted_stable_dt(scene, m, max_dofs=MAX_DOFS), None
+
+
+def prediction_line(method: str, dt: float, predicted: float | None) -> str:
+    """``predicted stable dt for rk4: 0.02828 s (dt = 0.01 is below it)`` and the like."""
+    head = f"predicted stable dt for {method}:"
+    if predicted == math.inf:
+        return f"{head} no limit ({method} is A-stable; eigenvalue analysis skipped)"
+    if predicted == 0:
+        return (f"{head} none: on this scene's undamped oscillations |R| > 1 at every dt, so they "
+                f"grow (slowly when dt is small: a short run may look bounded)")
+    side = "above" if dt > predicted else "below"
+    return f"{head} {predicted:.4g} s (dt = {dt:g} is {side} it)"
+
+
+def drift_words(drift: float, method: str) -> str:
+    """What a relative change of the ledger ``K + U + D`` means (it is the method's, not physics)."""
+    if not math.isfinite(drift) or abs(drift) <= 1e-6:
+        return ""
+    if drift < 0:
+        return f" (the ledger lost energy: numerical damping of {method})"
+    return f" (the ledger gained energy: {method} adds energy)"
 
 
 def energy_summary(traj) -> dict:
@@ -115,8 +203,11 @@ def save_npz(path: Path, traj, scene) -> Path:
     return atomic_write(path, lambda tmp: np.savez_compressed(tmp, **data))
 
 
-def save_outputs(folder: Path, traj, scene, animate: str | None) -> dict:
-    """Write the data, the two figures and (optionally) the animation; returns their paths."""
+def save_outputs(folder: Path, traj, scene, animate: str | None, files: dict | None = None) -> dict:
+    """Write the data, the two figures and (optionally) the animation; returns their paths.
+
+    ``files`` (filled as each file is written) tells an interrupted caller what exists.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -126,7 +217,8 @@ def save_outputs(folder: Path, traj, scene, animate: str | None) -> dict:
     from mslab.plots import plot_configuration, plot_energy
 
     name = scene.name
-    files = {"data": save_npz(folder / f"{name}.npz", traj, scene)}
+    files = {} if files is None else files
+    files["data"] = save_npz(folder / f"{name}.npz", traj, scene)
     if len(traj.t) == 0:
         return files
     fig, ax = plt.subplots(figsize=(7, 4))
@@ -140,20 +232,20 @@ def save_outputs(folder: Path, traj, scene, animate: str | None) -> dict:
     ax.set_title(f"{name} at t = {traj.t[-1]:.4g} s ({traj.stats.method})")
     files["final_figure"] = save_figure(ax.figure, folder / f"{name}_final.png")
     if animate:
-        from matplotlib import animation as mpl_animation
-
         from mslab.plots import animate as write_animation
+        from mslab.progress import Progress
 
-        if animate == "mp4" and not mpl_animation.writers.is_available("ffmpeg"):
-            raise CommandError("ffmpeg not found; use --animate gif", key="--animate")
-        files["animation"] = atomic_write(
-            folder / f"{name}.{animate}", lambda tmp: write_animation(traj, scene, tmp)
-        )
+        with Progress(None, f"writing {name}.{animate}", unit="frame") as bar:
+            files["animation"] = atomic_write(
+                folder / f"{name}.{animate}", lambda tmp: write_animation(traj, scene, tmp, progress=bar)
+            )
     return files
 
 
-def _report(args, scene, traj, predicted, files, notes) -> dict:
+def _report(args, scene, traj, predicted, files, notes, cost) -> dict:
     s = traj.stats
+    t_last = float(traj.t[-1]) if len(traj.t) else 0.0
+    stopped = None if traj.complete else {"step": s.steps, "t": s.steps * s.dt}
     doc = {
         "scene": scene.name,
         "description": scene.description,
@@ -162,8 +254,11 @@ def _report(args, scene, traj, predicted, files, notes) -> dict:
         "effects": scene.effects,
         "method": s.method,
         "dt": s.dt,
-        "t_end": float(traj.t[-1]) if len(traj.t) else 0.0,
+        "t_end": cost.t_end,
         "complete": traj.complete,
+        "stopped_at": stopped,
+        "t_last_saved": t_last,
+        "cost": cost.as_dict(),
         "predicted_stable_dt": predicted,
         "stats": s.as_dict(),
         "energy": energy_summary(traj),
@@ -172,19 +267,16 @@ def _report(args, scene, traj, predicted, files, notes) -> dict:
     }
     if args.json:
         return doc
-    say(
-        args,
-        f"{scene.name}: {scene.n_particles} particles, dim {scene.dim}, effects: {', '.join(scene.effects)}",
-    )
-    say(
-        args,
-        f"method {s.method}, dt = {s.dt:g}, {s.steps} steps to t = {doc['t_end']:g} s"
-        + ("" if traj.complete else " (incomplete)"),
-    )
+    if traj.complete:
+        say(args, f"method {s.method}, dt = {s.dt:g}: {s.steps} steps to t = {cost.t_end:g} s")
+    else:
+        say(args, f"method {s.method}, dt = {s.dt:g}: stopped at step {s.steps} of {cost.steps} "
+                  f"(t = {s.steps * s.dt:.6g} s of {cost.t_end:g} s); "
+                  f"last saved sample at t = {t_last:.6g} s")
     say(
         args,
         f"work: n_force = {s.n_force}, n_jac = {s.n_jac}, n_solve = {s.n_solve}, n_iter = {s.n_iter}, "
-        f"wall time = {s.wall_time:.3f} s",
+        f"wall time = {s.wall_time:.3f} s" + ("" if traj.complete else f" (to step {s.steps})"),
     )
     e = doc["energy"]
     if e:
@@ -193,7 +285,8 @@ def _report(args, scene, traj, predicted, files, notes) -> dict:
             f"energy ledger K + U + D: {e['initial_total']:.6g} -> {e['final_total']:.6g} J "
             f"(K = {e['final_kinetic']:.4g}, U = {e['final_potential']:.4g}, "
             f"D = {e['final_dissipated']:.4g}); "
-            f"relative drift {e['relative_drift']:.3e}, max |drift| {e['max_abs_relative_drift']:.3e}",
+            f"relative drift {e['relative_drift']:.3e}, max |drift| {e['max_abs_relative_drift']:.3e}"
+            + drift_words(e["relative_drift"], s.method),
         )
     for key, path in files.items():
         say(args, f"wrote {key.replace('_', ' ')}: {path}")
@@ -201,38 +294,68 @@ def _report(args, scene, traj, predicted, files, notes) -> dict:
 
 
 def run(args) -> int:
+    from mslab.budget import memory_problem, run_cost, size_text
     from mslab.errors import InstabilityError, StabilityWarning
+    from mslab.progress import Progress, duration
     from mslab.scenes.loader import load_scene
     from mslab.simulate import SimulationInterrupted, simulate
 
+    # -- cheap checks first: options, tools, the scene file, the run's size --------------------------
+    problem = animation_problem(args.animate)
+    if problem:
+        raise CommandError(problem, key="--animate")
+    budget, budget_name = memory_budget(args)
     scene = load_scene(
         args.scene, method=args.method, dt=args.dt, t_end=args.t_end, save_every=args.save_every
     )
     method = scene.settings.method
-    folder = out_dir(args, default=f"out/{scene.name}" if args.animate else None)
+    cost = run_cost(scene)
+    problem = memory_problem(cost, budget, budget_name)
+    if problem:
+        raise CommandError(problem, where=str(args.scene), key="run")
+    folder = out_path(args, default=f"out/{scene.name}" if args.animate else None)
     notes: list[str] = []
-
-    # -- predicted stable step (mslab.stability.max_stable_dt) ------------------------------------------
-    predicted = predicted_dt(scene, method)
-    if predicted is not None and not args.json:
-        if predicted == np.inf:
-            limit, verdict = "no limit (A-stable)", ""
-        elif predicted == 0:
-            limit, verdict = "none: unstable at every dt on this scene (undamped oscillations grow)", ""
-        else:
-            above = scene.settings.dt > predicted
-            limit, verdict = f"{predicted:.4g} s", " (dt is above it)" if above else " (dt is below it)"
-        say(args, f"predicted stable dt for {method}: {limit}{verdict}")
-    # ----------------------------------------------------------------------------------------------------
-
     if not args.json:
+        say(args, f"{scene.name}: {scene.n_particles} particles, dim {scene.dim}, "
+                  f"effects: {', '.join(scene.effects)}")
+        fits = f" (budget {size_text(budget)})" if budget is not None else ""
+        say(args, f"cost: {cost.describe()}{fits}")
+
+    # -- predicted stable step: only where it can change something ------------------------------------
+    try:
+        predicted, skipped = predicted_dt(scene, method)
+    except KeyboardInterrupt:
+        print("mslab: interrupted before the run started: nothing computed, nothing written",
+              file=sys.stderr)
+        return EXIT_INTERRUPTED
+    if skipped:
+        notes.append(skipped)
+    if not args.json:
+        say(args, skipped or prediction_line(method, scene.settings.dt, predicted))
         say(args, f"running {method} on {scene.name} ...")
         sys.stdout.flush()
+
+    # -- the run: progress by the clock, warnings as they arise ----------------------------------------
+    def estimate(total: float, done: int) -> None:
+        bar.write(f"estimate: about {duration(total)} for {cost.steps} steps (from {bar.measured()} "
+                  f"steps after the first)", file=sys.stdout)
+
     code, failure = 0, ""
-    with warnings.catch_warnings(record=True) as caught:
+    bar = Progress(cost.steps, method, on_estimate=None if args.json else estimate)
+    with warnings.catch_warnings():
         warnings.simplefilter("always", StabilityWarning)
+        shown = warnings.showwarning
+
+        def show(message, category, filename, lineno, file=None, line=None):
+            if not issubclass(category, StabilityWarning):
+                return shown(message, category, filename, lineno, file, line)
+            notes.append(str(message))
+            if not args.json:
+                bar.write(f"mslab: warning: {message}")
+
+        warnings.showwarning = show
         try:
-            traj = simulate(scene, progress=None, stable_dt=predicted)
+            traj = simulate(scene, progress=bar, stable_dt=None if predicted == math.inf else predicted)
         except SimulationInterrupted as stop:
             traj, code = stop.trajectory, EXIT_INTERRUPTED
         except InstabilityError as err:
@@ -241,12 +364,19 @@ def run(args) -> int:
             traj, code = err.trajectory, EXIT_UNSTABLE
             failure = str(err).splitlines()[0]
             notes.append(failure)
-    for w in caught:
-        if issubclass(w.category, StabilityWarning):
-            notes.append(str(w.message))
-            print(f"mslab: warning: {w.message}", file=sys.stderr)
-    files = save_outputs(folder, traj, scene, args.animate if code == 0 else None) if folder else {}
-    doc = _report(args, scene, traj, predicted, files, notes)
+        finally:
+            bar.close()
+
+    # -- outputs ---------------------------------------------------------------------------------------
+    files: dict = {}
+    try:
+        if folder is not None:
+            save_outputs(folder, traj, scene, args.animate if code == 0 else None, files)
+    except KeyboardInterrupt:
+        written = ", ".join(str(p) for p in files.values()) or "nothing"
+        print(f"mslab: interrupted while writing the outputs; complete files: {written}", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    doc = _report(args, scene, traj, predicted, files, notes, cost)
     if args.json:
         emit_json(doc)
     if code == EXIT_UNSTABLE:

@@ -1,52 +1,106 @@
-"""``mslab validate FILE...``: check scene files without running them.
+"""``mslab validate FILE...``: check scene files without running them, and say what a run costs.
 
-Prints one line per file: ``FILE: ok (...)`` or ``mslab: error: FILE: KEY: reason``
-(on stderr). Exit code 0 when every file is valid, 2 otherwise.
+Prints one line per file: ``FILE: ok (...)`` with the run's cost (steps, saved samples
+and their memory, and a time estimate from a few timed steps), or
+``mslab: error: FILE: KEY: reason`` on stderr. A scene whose saved data would exceed the
+memory budget (``--max-memory``, default half the available memory) is an error here too,
+as ``mslab run`` would refuse it. ``--json`` prints one JSON document on stdout and nothing
+on stderr; ``--out DIR`` also writes it to ``DIR/validate.json``. Exit code 0 when every
+file is valid, 2 otherwise.
 """
 
 from __future__ import annotations
 
 import sys
 
-from mslab.commands.common import add_common_options, emit_json, say
+from mslab.commands.common import (
+    add_budget_option,
+    add_common_options,
+    emit_json,
+    memory_budget,
+    out_path,
+    say,
+)
 
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
         "validate",
-        help="check scene files without running them",
-        description="Check scene files (or built-in names) and report the first "
-        "mistake of each as one line FILE: KEY: reason.",
+        help="check scene files without running them (and estimate what a run costs)",
+        description="Check scene files (or built-in names) and report the first mistake of each as "
+                    "one line FILE: KEY: reason; for a valid file, the run's steps, saved samples, "
+                    "memory and an estimate of its time from a few timed steps.",
     )
     p.add_argument("files", nargs="+", metavar="FILE", help="scene .toml files or built-in scene names")
-    add_common_options(p, out=False)
+    p.add_argument("--no-timing", action="store_true", help="skip the few timed steps of the time estimate")
+    add_budget_option(p)
+    add_common_options(p)
     p.set_defaults(func=run)
 
 
-def run(args) -> int:
+def check(name: str, budget: int | None, budget_name: str, timing: bool) -> dict:
+    """The validation record of one file: ``ok``, the cost, or ``key``/``reason``/``error``."""
+    from mslab.budget import memory_problem, run_cost, time_per_step
     from mslab.errors import SceneError
+    from mslab.progress import Progress
     from mslab.scenes.loader import load_scene
-    from mslab.simulate import step_count
 
+    try:
+        scene = load_scene(name)
+    except SceneError as err:
+        return {"file": name, "ok": False, "key": err.key, "reason": err.reason,
+                "error": str(err).splitlines()[0]}
+    cost = run_cost(scene)
+    problem = memory_problem(cost, budget, budget_name)
+    if problem:
+        return {"file": name, "ok": False, "key": "run", "reason": problem,
+                "error": f"{name}: run: {problem}", "cost": cost.as_dict()}
+    record = {"file": name, "ok": True, **scene.summary(), "steps": cost.steps, "cost": cost.as_dict(),
+              "seconds_per_step": None, "estimated_seconds": None}
+    if timing:
+        with Progress(None, f"{name}: timing a few steps"):
+            per_step, timed = time_per_step(scene)
+        if timed:
+            record["seconds_per_step"] = per_step
+            record["estimated_seconds"] = per_step * cost.steps
+    return record
+
+
+def line(record: dict) -> str:
+    """``FILE: ok (10 particles, ...; 1000 steps, ...; about 0.2 s)``."""
+    from mslab.budget import RunCost
+    from mslab.progress import duration
+
+    cost = RunCost(**record["cost"])
+    if record["estimated_seconds"] is not None:
+        when = f"; about {duration(record['estimated_seconds'])} (from a few timed steps)"
+    else:
+        when = ""
+    return (f"{record['file']}: ok ({record['n_particles']} particles, {record['n_springs']} springs, "
+            f"effects: {', '.join(record['effects']) or 'none'}; {record['method']}, dt = {record['dt']:g}, "
+            f"t_end = {record['t_end']:g} s: {cost.describe()}{when})")
+
+
+def run(args) -> int:
+    from mslab.commands.precision import write_json
+
+    budget, budget_name = memory_budget(args)
     results = []
     for name in args.files:
-        try:
-            scene = load_scene(name)
-        except SceneError as err:
-            results.append(
-                {"file": name, "ok": False, "key": err.key, "reason": err.reason, "error": str(err)}
-            )
-            print(f"mslab: error: {str(err).splitlines()[0]}", file=sys.stderr)
+        record = check(name, budget, budget_name, timing=not args.no_timing)
+        results.append(record)
+        if args.json:
             continue
-        s = scene.settings
-        n_steps = step_count(s.t_end, s.dt)
-        results.append({"file": name, "ok": True, **scene.summary(), "steps": n_steps})
-        say(
-            args,
-            f"{name}: ok ({scene.n_particles} particles, {len(scene.spring_kind)} springs, effects: "
-            f"{', '.join(scene.effects) or 'none'}; {s.method}, dt = {s.dt:g}, "
-            f"{n_steps} steps to {s.t_end:g} s)",
-        )
+        if record["ok"]:
+            say(args, line(record))
+        else:
+            print(f"mslab: error: {record['error']}", file=sys.stderr)
+    doc = {"files": results, "ok": all(r["ok"] for r in results)}
+    folder = out_path(args)
+    if folder is not None:
+        path = write_json(folder / "validate.json", doc)
+        if not args.json:
+            say(args, f"wrote {path}")
     if args.json:
-        emit_json({"files": results, "ok": all(r["ok"] for r in results)})
-    return 0 if all(r["ok"] for r in results) else 2
+        emit_json(doc)
+    return 0 if doc["ok"] else 2

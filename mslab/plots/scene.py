@@ -124,7 +124,7 @@ def _draw(x, springs, ax, pinned, colliders, limits, color):
     return ax, update
 
 
-def animate(traj, scene, path, fps: int = 15, max_frames: int = 60) -> Path:
+def animate(traj, scene, path, fps: int = 15, max_frames: int = 60, progress=None) -> Path:
     """Write an animation of a trajectory: GIF (Pillow) or MP4 (ffmpeg), chosen by ``path``'s suffix.
 
     Parameters
@@ -135,6 +135,8 @@ def animate(traj, scene, path, fps: int = 15, max_frames: int = 60) -> Path:
         For the springs, pinned particles and colliders.
     path : str or Path
         Output file, ``.gif`` or ``.mp4``.
+    progress : object with ``update(n)`` and ``describe(desc, total)``, optional
+        Told about each frame written (e.g. a :class:`mslab.progress.Progress`).
 
     Returns
     -------
@@ -163,6 +165,13 @@ def animate(traj, scene, path, fps: int = 15, max_frames: int = 60) -> Path:
 
     anim = FuncAnimation(fig, draw, frames=len(frames), blit=False)
     writer = FFMpegWriter(fps=fps) if path.suffix == ".mp4" else PillowWriter(fps=fps)
-    anim.save(str(path), writer=writer, dpi=72)
+    if progress is not None:
+        progress.describe(f"writing {path.suffix[1:]}", total=len(frames))
+
+    def frame_done(i: int, n: int) -> None:
+        if progress is not None:
+            progress.update(1)
+
+    anim.save(str(path), writer=writer, dpi=72, progress_callback=frame_done)
     plt.close(fig)
     return path

@@ -1,0 +1,112 @@
+"""Work-precision: error, counted work and wall time of every (method, dt), scipy alongside."""
+
+from __future__ import annotations
+
+from mslab.precision.reference import reference_solution
+from mslab.precision.runs import (
+    _describe,
+    _dts_per_method,
+    _method_names,
+    _picklable,
+    _progress_bar,
+    _record,
+    _run_tasks,
+    _time_mslab,
+    _time_scipy,
+)
+from mslab.scenes.builder import Scene
+from mslab.simulate import step_count
+
+#: scipy's ``solve_ivp`` methods drawn as reference curves
+SCIPY_METHODS = ("RK45", "DOP853", "Radau", "BDF")
+#: default tolerance sweep of the scipy curves (``atol = rtol``)
+SCIPY_RTOLS = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10)
+
+
+def work_precision(scene: Scene, methods, dts, t_end: float | None = None, *,
+                   scipy_methods=(), rtols=SCIPY_RTOLS, atol: float | None = None,
+                   timing: bool = True, repeats: int = 5, budget: float = 1.0, n_save: int = 100,
+                   jobs: int = 1, progress: bool | None = False) -> list[dict]:
+    """Error, counted work and wall time of every (method, dt), plus scipy reference curves.
+
+    Parameters
+    ----------
+    scene : Scene
+    methods : sequence of str
+        mslab registry names.
+    dts : sequence of float, or dict of method name -> sequence of float
+        Steps; ``t_end / dt`` must be a whole number for each (see :func:`whole_dts`). A dict
+        gives each method its own steps (implicit methods often need coarser ones).
+    t_end : float, optional
+        Default ``scene.settings.t_end``.
+    scipy_methods : sequence of str
+        ``solve_ivp`` methods run over ``rtols`` on the same forces (e.g. :data:`SCIPY_METHODS`).
+    rtols : sequence of float
+        Tolerance sweep of the scipy curves; ``atol`` defaults to each ``rtol``.
+    timing : bool
+        Measure wall times (False: ``wall_time = nan``, much faster).
+    repeats, budget : int, float
+        At most ``repeats`` timed runs per record, stopping after ``budget`` seconds.
+    n_save : int
+        About this many saved times enter ``error_rms``.
+    jobs : int
+        Processes for the error runs (timing runs stay serial; see the module notes).
+    progress : bool, None or object with ``update(n)``
+        Progress by the clock (:mod:`mslab.progress`) naming the current run; None: on a
+        terminal once the sweep has taken about 2 s, False: none, an object: the caller's.
+
+    Returns
+    -------
+    list of dict
+        One flat record per run: ``solver`` ("mslab" or "scipy"), ``method`` (scipy ones
+        as ``"scipy:RK45"``), ``dt`` (scipy: mean step ``t_end / steps``), ``rtol`` (scipy
+        only), ``error``, ``error_rms``, ``n_force``, ``n_jac``, ``n_solve`` (scipy: LU
+        factorisations), ``n_iter``, ``steps``, ``wall_time`` [s], ``ok``, ``failure``,
+        ``reference`` ("exact" or "DOP853").
+    """
+    t_end = float(scene.settings.t_end if t_end is None else t_end)
+    names = _method_names(methods)
+    steps = _dts_per_method(dts, names)
+    for method_dts in steps.values():
+        for dt in method_dts:
+            step_count(t_end, dt)  # refuse a dt that does not divide t_end before doing any work
+    ref = reference_solution(scene, t_end)
+    light = _picklable(scene)
+    tasks = [("mslab", light, m, dt, t_end, n_save, None) for m in names for dt in steps[m]]
+    tasks += [("scipy", light, s, float(r), t_end, n_save, atol) for s in scipy_methods for r in rtols]
+    n_timed = len(tasks) if timing else 0
+    bar, owned = _progress_bar(len(tasks) + n_timed, progress, f"precision {scene.name}")
+    try:
+        runs = _run_tasks(tasks, jobs, bar)
+        records = []
+        for task, run in zip(tasks, runs, strict=True):
+            kind, _, name, value, *_ = task
+            if kind == "mslab":
+                records.append(_record("mslab", name, value, None, run, ref))
+            else:
+                records.append(_record("scipy", f"scipy:{name}", run["stats"]["dt"], value, run, ref))
+        if timing:
+            warm = set()  # serial sweeps: the error runs in this process were the warm-up
+            for task, rec in zip(tasks, records, strict=True):
+                kind, _, name, value, *_ = task
+                if rec["ok"]:
+                    _describe(bar, f"timing {name} {'dt' if kind == 'mslab' else 'rtol'} = {value:.3g}")
+                    warm_up = jobs > 1 and (kind, name) not in warm
+                    warm.add((kind, name))
+                    if kind == "mslab":
+                        rec["wall_time"] = _time_mslab(scene, name, value, t_end, repeats, budget, warm_up)
+                    else:
+                        rec["wall_time"] = _time_scipy(scene, name, value, t_end, atol, repeats, budget,
+                                                       warm_up)
+                if bar is not None:
+                    bar.update(1)
+    finally:
+        if owned:
+            bar.close()
+    return records
+
+
+def scipy_records(scene: Scene, t_end: float | None = None, methods=SCIPY_METHODS, rtols=SCIPY_RTOLS,
+                  **kwargs) -> list[dict]:
+    """Only the scipy reference curves of :func:`work_precision` (same record fields)."""
+    return work_precision(scene, (), (), t_end, scipy_methods=methods, rtols=rtols, **kwargs)
