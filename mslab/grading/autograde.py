@@ -28,6 +28,9 @@ from mslab.grading.remote import set_not_dumpable
 
 #: seconds a runner may need beyond its tests' time limits (interpreter, pytest, imports)
 RUNNER_SLACK = 60.0
+#: the folder holding the grader's own ``mslab`` (the runner imports the same code)
+PACKAGE_ROOT = str(Path(__file__).resolve().parents[2])
+RUNNER_BOOT = "import sys; sys.path.insert(0, {root!r}); from mslab.grading.runner import main; main()"
 #: bytes of runner output the grader reads at most
 MAX_RUNNER_OUTPUT = 4 * 1024 * 1024
 
@@ -85,7 +88,7 @@ def _run_runner(job: dict, wall_limit: float) -> tuple[dict, str]:
     """Start one runner, feed it the job; ``{key: outcome}`` of the items it finished, and why not all."""
     env = dict(os.environ, PYTEST_DISABLE_PLUGIN_AUTOLOAD="1", PYTHONDONTWRITEBYTECODE="1")
     env.pop("PYTEST_ADDOPTS", None)
-    proc = subprocess.Popen([sys.executable, "-E", "-s", "-P", "-m", "mslab.grading.runner"],
+    proc = subprocess.Popen([sys.executable, "-E", "-s", "-P", "-c", RUNNER_BOOT.format(root=PACKAGE_ROOT)],
                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
                             start_new_session=True, env=env, cwd=os.path.abspath(os.sep))
     why = ""
