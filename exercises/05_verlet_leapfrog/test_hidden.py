@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from mslab.grading.checks import check_array, fitted_order
+from mslab.grading.checks import check_array, fitted_order, reference_run
 from mslab.grading.problems import problem
 from mslab.scenes.generators import oscillator_solution
 
@@ -32,6 +32,9 @@ def test_verlet_and_leapfrog_give_the_same_positions(student):
     xv = verlet(student, prob, v0, 0.02, 40)
     xl = leapfrog(student, prob, v0, 0.02, 40)
     check_array(xv, xl, rtol=1e-8, atol=1e-10, what="Verlet vs leapfrog after 40 steps")
+    # ... and both are the library's Verlet (two methods that never move agree too)
+    ref = reference_run("verlet", prob, prob.x0, v0, 0.02, steps=40)
+    check_array(xv, ref.x, rtol=1e-8, atol=1e-10, what="Verlet after 40 steps")
 
 
 @pytest.mark.points(2)
@@ -57,3 +60,17 @@ def test_leapfrog_stays_bounded_near_its_limit(student):
         peak = max(peak, abs(float(x[1, 0]) - 1.0))
     assert peak < 1.0, f"amplitude grew to {peak:.3g}"
     assert peak > 0.15, f"amplitude shrank to {peak:.3g} (leapfrog does not damp)"
+
+
+@pytest.mark.points(1)
+def test_both_on_a_chain_drawn_at_grading(student):
+    # fresh inputs every grading: no table of answers can pass
+    rng = np.random.default_rng()
+    prob = problem("chain", n=int(rng.integers(3, 7)), dim=int(rng.integers(2, 4)),
+                   stiffness=float(rng.uniform(20, 100)), sag=0.3)
+    v0 = rng.normal(size=prob.x0.shape) * (~prob.pinned)[:, None]
+    dt, n = float(rng.uniform(2e-3, 1e-2)), int(rng.integers(3, 8))
+    ref = reference_run("verlet", prob, prob.x0, v0, dt, steps=n)
+    check_array(verlet(student, prob, v0, dt, n), ref.x, rtol=1e-9, atol=1e-11, what="Verlet x")
+    ref = reference_run("leapfrog", prob, prob.x0, v0, dt, steps=n)
+    check_array(leapfrog(student, prob, v0, dt, n), ref.x, rtol=1e-9, atol=1e-11, what="leapfrog x")
