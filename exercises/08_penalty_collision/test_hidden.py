@@ -65,7 +65,8 @@ def test_a_plane_drawn_at_grading(student):
     n = rng.normal(size=dim)
     n /= np.linalg.norm(n)
     x, v = rng.normal(size=(7, dim)) * 0.3, rng.normal(size=(7, dim))
-    offset, k, mu, eps = float(rng.uniform(-0.1, 0.1)), float(rng.uniform(1e2, 1e4)), float(rng.uniform(0, 1)), 1e-3
+    offset, k, mu, eps = float(rng.uniform(-0.1, 0.1)), float(rng.uniform(1e2, 1e4)), \
+        float(rng.uniform(0, 1)), 1e-3
     plane = Plane(n, offset, stiffness=k, friction=mu, slip_velocity=eps)
     check_array(student.penetration_depth(x, n, offset), offset - x @ n, rtol=1e-12, atol=1e-12, what="depth")
     check_array(student.plane_contact_force(x, v, n, offset, k, mu, eps), plane.force(x, v),

@@ -24,6 +24,8 @@ from mslab.grading.wire import WireError, dumps, loads
 PR_SET_PDEATHSIG, PR_SET_DUMPABLE, PR_CAPBSET_DROP, PR_SET_NO_NEW_PRIVS = 1, 4, 24, 38
 #: processes the student's uid may have at once (namespace modes as root)
 MAX_PROCESSES = 64
+#: the sandbox's own "type" for an answer it cannot send (no student class has this name)
+WIRE_FAILURE = "<wire>"
 #: largest single reply accepted from the sandbox (bytes)
 MAX_REPLY = 32 * 1024 * 1024
 
@@ -279,7 +281,9 @@ class Student:
             raise AttributeError(name)
         reply = self._sandbox.request({"op": "getattr", "name": name}, self._deadline, self._timeout)
         if not reply.get("ok"):
-            raise StudentError(_missing(name, reply), tuple(reply.get("mro", ())))
+            if reply.get("type") == "AttributeError":  # the grader's words, not the student's error
+                raise StudentError(_missing(name, reply))
+            raise StudentError(_missing(name, reply), _mro(reply))
         if not reply.get("callable"):
             return reply.get("value")
 
@@ -287,11 +291,17 @@ class Student:
             r = self._sandbox.request({"op": "call", "name": name, "args": list(args), "kwargs": kwargs},
                                       self._deadline, self._timeout)
             if not r.get("ok"):
-                raise StudentError(f"{name}(): {r.get('error', 'failed')}", tuple(r.get("mro", ())))
+                raise StudentError(f"{name}(): {r.get('error', 'failed')}", _mro(r))
             return r.get("value")
 
         call.__name__ = name
         return call
+
+
+def _mro(reply: dict) -> tuple[str, ...]:
+    """The student's exception classes; none when the sandbox itself reports (data it cannot send)."""
+    mro = tuple(str(c) for c in reply.get("mro", ()) if isinstance(c, str))
+    return () if mro[:1] == (WIRE_FAILURE,) else mro
 
 
 def _missing(name: str, reply: dict) -> str:

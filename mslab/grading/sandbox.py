@@ -60,7 +60,7 @@ def main() -> None:
         try:
             line = dumps(msg)
         except WireError as err:
-            line = dumps({"ok": False, "type": "WireError", "mro": ["WireError"],
+            line = dumps({"ok": False, "type": "WireError", "mro": ["<wire>"],
                           "error": f"the function returned data the grader cannot read: {err}"})
         chan_out.write(line)
         chan_out.flush()
