@@ -13,44 +13,21 @@ crashes, hangs or reports nonsense can only lose points, never add any.
 from __future__ import annotations
 
 import contextlib
-import ctypes
-import json
 import os
-import resource
 import secrets
-import selectors
-import shutil
 import signal
-import subprocess
-import sys
-import tempfile
 import threading
-import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from mslab.grading.dispatch import RUNNER_SLACK, STOP, clean_stale_folders, run_runner
 from mslab.grading.isolation import DESCRIPTION, detect
 from mslab.grading.layout import HIDDEN, Exercise, expand_submissions, find_exercises, read_student_file
-from mslab.grading.remote import PR_SET_PDEATHSIG, set_not_dumpable
+from mslab.grading.remote import set_not_dumpable
 from mslab.grading.report import Journal, fingerprint, format_report, gradebook_rows, item_key, printable
 
 __all__ = ["ExerciseResult", "SubmissionResult", "TestResult", "format_report", "grade", "gradebook_rows"]
-
-#: seconds a runner may need beyond its tests' time limits (interpreter, pytest, imports)
-RUNNER_SLACK = 60.0
-#: the folder holding the grader's own ``mslab`` (the runner imports the same code)
-PACKAGE_ROOT = str(Path(__file__).resolve().parents[2])
-RUNNER_BOOT = "import sys; sys.path.insert(0, {root!r}); from mslab.grading.runner import main; main()"
-#: bytes of runner output the grader reads at most
-MAX_RUNNER_OUTPUT = 16 * 1024 * 1024
-#: address-space limit of a test runner (MB): it decodes what the sandbox answers
-RUNNER_MEMORY_MB = 4096
-#: temporary folders of the grader: ``mslab-grade-<pid>-...`` (stale ones are removed)
-TMP_PREFIX = "mslab-grade-"
-#: set when grading is interrupted: every runner is stopped and its folder removed
-_STOP = threading.Event()
-
 
 @dataclass
 class TestResult:
@@ -119,116 +96,6 @@ def _interrupts():
         signal.signal(signal.SIGTERM, old)
 
 
-def _runner_limits() -> None:
-    """In the runner, between fork and exec: bounded memory, and death with the grader."""
-    mem = RUNNER_MEMORY_MB * 1024 * 1024
-    resource.setrlimit(resource.RLIMIT_AS, (mem, mem))
-    resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
-    try:
-        ctypes.CDLL(None).prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
-    except (OSError, AttributeError):
-        pass
-
-
-def _clean_stale_folders() -> None:
-    """Remove the temporary folders of graders that were killed (their pid is gone)."""
-    for folder in Path(tempfile.gettempdir()).glob(f"{TMP_PREFIX}*"):
-        try:
-            pid = int(folder.name[len(TMP_PREFIX):].split("-")[0])
-            os.kill(pid, 0)
-        except ProcessLookupError:
-            shutil.rmtree(folder, ignore_errors=True)
-        except (ValueError, PermissionError, OSError):
-            continue
-
-
-def _run_runner(job: dict, wall_limit: float, on_item) -> tuple[set, str]:
-    """Start one runner, feed it the job, hand each finished item to ``on_item(key, outcome)``.
-
-    Returns the keys finished and why not all. The runner's temporary folder is the
-    grader's: removed here however the runner ended.
-    """
-    tmp = tempfile.mkdtemp(prefix=f"{TMP_PREFIX}{os.getpid()}-")
-    job = dict(job, tmp=tmp)
-    env = dict(os.environ, PYTEST_DISABLE_PLUGIN_AUTOLOAD="1", PYTHONDONTWRITEBYTECODE="1")
-    env.pop("PYTEST_ADDOPTS", None)
-    keys = {it["key"] for it in job["items"]}
-    done: set = set()
-    why = ""
-    proc = subprocess.Popen([sys.executable, "-E", "-s", "-P", "-c", RUNNER_BOOT.format(root=PACKAGE_ROOT)],
-                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-                            start_new_session=True, env=env, cwd=os.path.abspath(os.sep),
-                            preexec_fn=_runner_limits)
-    sel = selectors.DefaultSelector()
-    fd = proc.stdout.fileno()
-    sel.register(fd, selectors.EVENT_READ)
-    prefix = job["nonce"].encode() + b" "
-    try:
-        buf, total, ready = b"", 0, False
-        deadline = time.monotonic() + RUNNER_SLACK
-        while True:
-            if _STOP.is_set():
-                why = "grading was interrupted"
-                break
-            left = deadline - time.monotonic()
-            if left <= 0:
-                why = (f"grading took longer than {wall_limit:.0f} s" if ready
-                       else "the test runner did not start")
-                break
-            if not sel.select(timeout=min(left, 0.5)):
-                continue
-            chunk = os.read(fd, 1 << 16)
-            if not chunk:
-                break
-            total += len(chunk)
-            if total > MAX_RUNNER_OUTPUT:
-                why = "the test runner wrote too much"
-                break
-            buf += chunk
-            while b"\n" in buf:
-                line, buf = buf.split(b"\n", 1)
-                if not ready:
-                    if line != b"ready":
-                        return done, "the test runner did not start"
-                    ready = True  # non-dumpable now: the nonce may go out
-                    deadline = time.monotonic() + wall_limit
-                    proc.stdin.write(json.dumps(job).encode())
-                    proc.stdin.close()
-                    continue
-                if not line.startswith(prefix):
-                    continue
-                try:
-                    msg = json.loads(line[len(prefix):])
-                except ValueError:
-                    continue
-                key = str(msg.get("key")) if isinstance(msg, dict) else ""
-                if key in keys and key not in done and isinstance(msg.get("outcome"), dict):
-                    done.add(key)
-                    on_item(key, msg["outcome"])
-    except (BrokenPipeError, OSError):
-        why = why or "the test runner stopped"
-    finally:
-        sel.close()
-        _killpg(proc)
-        shutil.rmtree(tmp, ignore_errors=True)
-    if len(done) < len(keys) and not why:
-        why = f"the test runner stopped (exit code {proc.returncode})"
-    return done, why
-
-
-def _killpg(proc: subprocess.Popen) -> None:
-    try:
-        os.killpg(proc.pid, signal.SIGKILL)
-    except (ProcessLookupError, PermissionError):
-        pass
-    for stream in (proc.stdin, proc.stdout):
-        try:
-            stream.close()
-        except (OSError, ValueError):
-            pass
-    proc.wait()
-
-
 def _reason(test: str, entry: dict) -> str:
     """The reason shown for a failed test; for a hidden test, its kind only (never its text)."""
     text = str(entry.get("reason", "failed"))[:200]
@@ -267,7 +134,7 @@ def _run_items(items: list[dict], timeout: float, memory_mb: int, mode: str, on_
     job = {"nonce": secrets.token_hex(16), "timeout": timeout, "memory_mb": memory_mb, "isolation": mode,
            "import_timeout": max(30.0, timeout), "items": items}
     wall = sum(timeout * (it["n_tests"] + 1) + max(30.0, timeout) for it in items) + RUNNER_SLACK
-    return _run_runner(job, wall, on_item)
+    return run_runner(job, wall, on_item)
 
 
 def _run_chunk(items: list[dict], timeout: float, memory_mb: int, mode: str, on_item) -> None:
@@ -278,10 +145,10 @@ def _run_chunk(items: list[dict], timeout: float, memory_mb: int, mode: str, on_
     after it get a fresh runner, so one submission can never cost another one points.
     """
     pending = list(items)
-    while pending and not _STOP.is_set():
+    while pending and not STOP.is_set():
         done, why = _run_items(pending, timeout, memory_mb, mode, lambda k, o: on_item(k, o, ""))
         rest = [it for it in pending if it["key"] not in done]
-        if not rest or _STOP.is_set():
+        if not rest or STOP.is_set():
             break
         suspect = rest[0]
         if len(pending) == 1:  # it already ran alone
@@ -335,7 +202,7 @@ def grade(paths, source: str | Path, jobs: int | None = None, timeout: float = 1
         exercises = [e for e in exercises if e.name in only]
     submissions = expand_submissions(paths, exercises)
     jobs = max(1, jobs or os.cpu_count() or 1)
-    _clean_stale_folders()
+    clean_stale_folders()
     book = Journal(journal, fingerprint(exercises, timeout, memory_mb), resume) if journal else None
     outcomes: dict[str, tuple] = {}
     fixed: dict[tuple, str] = {}
@@ -370,7 +237,7 @@ def grade(paths, source: str | Path, jobs: int | None = None, timeout: float = 1
                 progress(sum(it["key"] in outcomes for it in items), total)
 
     chunks = [items[j::jobs] for j in range(jobs) if items[j::jobs]]
-    _STOP.clear()
+    STOP.clear()
     try:
         with _interrupts(), ThreadPoolExecutor(max_workers=jobs) as pool:
             futures = [pool.submit(_run_chunk, chunk, timeout, memory_mb, mode, on_item) for chunk in chunks]
@@ -378,7 +245,7 @@ def grade(paths, source: str | Path, jobs: int | None = None, timeout: float = 1
                 for f in futures:
                     f.result()
             except BaseException:
-                _STOP.set()
+                STOP.set()
                 raise
     finally:
         if book is not None:
