@@ -141,9 +141,9 @@ def plan() -> Plan:
     return Plan(ordered + mounts, exe)
 
 
-def sandbox_argv(python: str) -> list[str]:
+def sandbox_argv(python: str, module: str = "module.py") -> list[str]:
     """The sandbox command inside the namespaces (``-S``: no site, numpy from /grader)."""
-    return [python, "-E", "-s", "-S", "/grader/sandbox.py", "/work/module.py"]
+    return [python, "-E", "-s", "-S", "/grader/sandbox.py", f"/work/{module}"]
 
 
 def new_uid() -> int | None:
@@ -151,7 +151,8 @@ def new_uid() -> int | None:
     return UID_BASE + secrets.randbelow(UID_SPAN) if os.geteuid() == 0 else None
 
 
-def bwrap_command(p: Plan, source_fd: int, uid: int | None, argv: list[str] | None = None) -> list[str]:
+def bwrap_command(p: Plan, source_fd: int, uid: int | None, argv: list[str] | None = None,
+                  module: str = "module.py") -> list[str]:
     """The bubblewrap command line running the sandbox (the student's file from ``source_fd``)."""
     args = [shutil.which("bwrap") or "bwrap", "--unshare-pid", "--unshare-net", "--unshare-ipc",
             "--unshare-uts", "--unshare-cgroup-try", "--die-with-parent", "--new-session"]
@@ -168,20 +169,21 @@ def bwrap_command(p: Plan, source_fd: int, uid: int | None, argv: list[str] | No
             args += ["--symlink", m.src, m.dst]
         elif m.kind == "tmpfs":
             args += ["--perms", f"{m.mode:04o}", "--size", str(m.size), "--tmpfs", m.dst]
-    args += ["--perms", "0444", "--file", str(source_fd), "/work/module.py",
+    args += ["--perms", "0444", "--file", str(source_fd), f"/work/{module}",
              "--proc", "/proc", "--dev", "/dev", "--remount-ro", "/", "--chdir", "/work"]
     if uid is not None:
         args += ["/usr/bin/setpriv", f"--reuid={uid}", f"--regid={uid}", "--clear-groups",
                  "--inh-caps=-all", "--bounding-set=-all", "--no-new-privs"]
         if os.path.exists("/usr/bin/unshare"):
             args += ["/usr/bin/unshare", "--user"]
-    return args + (argv or sandbox_argv(p.python))
+    return args + (argv or sandbox_argv(p.python, module))
 
 
-def jail_command(p: Plan, source_fd: int, uid: int | None, argv: list[str] | None = None) -> list[str]:
+def jail_command(p: Plan, source_fd: int, uid: int | None, argv: list[str] | None = None,
+                 module: str = "module.py") -> list[str]:
     """The Python namespace launcher (:mod:`mslab.grading.jail`) running the sandbox."""
     config = {"mounts": [m.__dict__ for m in p.mounts], "uid": uid, "source_fd": source_fd,
-              "argv": argv or sandbox_argv(p.python)}
+              "module": module, "argv": argv or sandbox_argv(p.python, module)}
     return [os.path.realpath(sys.executable), "-I", "-S", str(JAIL), json.dumps(config)]
 
 

@@ -78,7 +78,7 @@ def build_root(root: str, config: dict, source: bytes) -> None:
         elif m["kind"] == "tmpfs":
             os.makedirs(dst, exist_ok=True)
             mount("tmpfs", dst, "tmpfs", MS_NOSUID | MS_NODEV, f"size={m['size']},mode={m['mode']:o}")
-    module = root + "/work/module.py"
+    module = root + "/work/" + os.path.basename(config.get("module") or "module.py")
     with open(module, "wb") as fh:
         fh.write(source)
     os.chmod(module, 0o444)

@@ -137,7 +137,8 @@ class Sandbox:
             return isolation.rlimit_command(self.module_file), (), self.workdir
         os.lseek(self._source_fd, 0, os.SEEK_SET)
         build = isolation.bwrap_command if self.mode == "bwrap" else isolation.jail_command
-        return build(_plan(), self._source_fd, isolation.new_uid()), (self._source_fd,), None
+        argv = build(_plan(), self._source_fd, isolation.new_uid(), module=self.module_file.name)
+        return argv, (self._source_fd,), None
 
     def ensure_started(self) -> None:
         """Start the sandbox if it is not running (importing the module has its own time limit)."""
