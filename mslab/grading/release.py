@@ -26,8 +26,8 @@ its equations), one Python file with the functions to write (replace every
 
 ## Run the public tests on your work
 
-From this folder, with `mslab` installed (`pip install mslab`; the public tests compare your
-results with the library):
+From this folder, with `mslab` installed (the package your course hands out, installed with
+`pip install`; the public tests compare your results with the library):
 
 ```
 pytest 03_heun_midpoint          # one exercise
