@@ -10,9 +10,12 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
+import sysconfig
+import tempfile
 import textwrap
 from pathlib import Path
 
@@ -20,7 +23,15 @@ import numpy as np
 import pytest
 
 from mslab.cli import main as cli_main
-from mslab.grading import find_exercises, grade, solution_lines, strip_solutions
+from mslab.grading import (
+    find_exercises,
+    format_report,
+    grade,
+    gradebook_rows,
+    solution_lines,
+    strip_solutions,
+)
+from mslab.grading.isolation import detect
 from mslab.grading.layout import BEGIN, END
 from mslab.grading.problems import problem
 from mslab.grading.wire import WireError, dumps, loads
@@ -30,6 +41,10 @@ SOURCE = ROOT / "exercises"
 TARGET = "07_stability_function"   # the exercise the hostile class attacks
 MODULE = "stability_function.py"
 TIMEOUT = 2.0
+#: where a .pth file would patch every later run of the grader's interpreter
+SITE_PTH = Path(sysconfig.get_paths()["purelib"]) / "zz_mslab_redteam.pth"
+ISOLATED = detect() != "rlimits"
+needs_isolation = pytest.mark.skipif(not ISOLATED, reason="no namespaces here (no bwrap, no user namespaces)")
 
 
 # -- release ----------------------------------------------------------------------------------
@@ -298,6 +313,86 @@ HOSTILE = {
 
         os.kill(os.getppid(), signal.SIGKILL)
     """,
+    # -- the red team of issue 10 -------------------------------------------------------------
+    "import_mslab": """
+        import numpy as np
+        from mslab.stability import amplification, real_interval
+        from mslab.integrators import ExplicitRK
+
+        def stability_function(A, b, z):
+            return np.asarray(amplification(ExplicitRK(A, b), z), dtype=complex)
+
+        def real_stability_interval(A, b, tol=1e-12):
+            return float(real_interval(ExplicitRK(A, b)))
+    """,
+    "load_reference": """
+        import glob, os, sys
+        found = {}
+        guesses = [REFERENCE] + glob.glob("/proc/*/cmdline")
+        for path in guesses:
+            try:
+                text = open(path, "rb").read().decode(errors="replace")
+            except OSError:
+                continue
+            if path.endswith("cmdline"):
+                for word in text.split("\0"):
+                    for cand in glob.glob(os.path.join(word, "**", "stability_function.py"), recursive=True):
+                        guesses.append(cand)
+                continue
+            exec(compile(text, path, "exec"), found)
+            break
+        stability_function = found.get("stability_function")
+        real_stability_interval = found.get("real_stability_interval")
+    """,
+    "read_classmate": """
+        found = {}
+        try:
+            exec(open(CLASSMATE).read(), found)
+        except OSError:
+            pass
+        stability_function = found.get("stability_function")
+        real_stability_interval = found.get("real_stability_interval")
+    """,
+    "daemons_and_files": """
+        import os, subprocess, sys
+        NL = chr(10)
+        lines = ["# mslab-redteam-daemon", "import time",
+                 "for _ in range(600):",
+                 "    for p in (CSV, REFERENCE, SITE_PTH):",
+                 "        try:",
+                 "            open(p, 'a').write('hacked')",
+                 "        except OSError:",
+                 "            pass",
+                 "    time.sleep(0.05)"]
+        code = NL.join(lines).replace("CSV", repr(CSV)).replace("REFERENCE", repr(REFERENCE))
+        code = code.replace("SITE_PTH", repr(SITE_PTH))
+        for _ in range(100):
+            try:
+                subprocess.Popen([sys.executable, "-c", code], start_new_session=True,
+                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            except OSError:
+                break
+        for k in range(200):  # 200 MB of files, wherever they may go
+            for folder in (".", "/tmp", os.path.dirname(CSV)):
+                try:
+                    with open(os.path.join(folder, f"junk{k}"), "wb") as fh:
+                        fh.write(b"x" * 1_000_000)
+                except OSError:
+                    pass
+
+        def stability_function(A, b, z):
+            raise NotImplementedError
+
+        def real_stability_interval(A, b, tol=1e-12):
+            raise NotImplementedError
+    """,
+    "huge_reply": """
+        def stability_function(A, b, z):
+            return [[] for _ in range(10_000_000)]
+
+        def real_stability_interval(A, b, tol=1e-12):
+            return [[] for _ in range(10_000_000)]
+    """,
     "edit_tests": """
         import os
         from pathlib import Path
@@ -321,6 +416,9 @@ HOSTILE = {
     """,
 }
 
+#: cases that, unisolated, would write outside their folder (run only where namespaces exist)
+RISKY = {"daemons_and_files", "load_reference", "read_classmate", "import_mslab"}
+
 #: what the report must say for each hostile case (a piece of the reason of every test)
 REASONS = {
     "empty": "NotImplementedError",
@@ -336,7 +434,12 @@ REASONS = {
     "patch_pytest_and_helpers": None,
     "forge_results": None,
     "edit_tests": "NotImplementedError",
-    "kill_runner": "test runner stopped",
+    "kill_runner": None,  # isolated: the runner is out of sight; else: "test runner stopped"
+    "import_mslab": "No module named 'mslab'",
+    "load_reference": None,
+    "read_classmate": None,
+    "daemons_and_files": None,
+    "huge_reply": None,
 }
 
 
@@ -346,12 +449,34 @@ def hostile(released, tmp_path_factory):
     base = tmp_path_factory.mktemp("hostile")
     cls = base / "class"
     marker = base / "proc_fd_marker.json"
+    reference = base / "reference_copy.py"  # attacks aim at a copy, never at the source tree
+    reference.write_text(SOLUTION)
+    paths = {"MARKER": marker, "REFERENCE": reference, "CSV": base / "gradebook.csv",
+             "CLASSMATE": cls / "victim" / TARGET / MODULE, "SITE_PTH": SITE_PTH}
+    (base / "gradebook.csv").write_text("student,total\n")
     for student, source in HOSTILE.items():
+        if student in RISKY and not ISOLATED:
+            continue  # without namespaces these would really write into the grader's venv
         folder = cls / student
         shutil.copytree(released, folder)
         if source is not None:
-            text = textwrap.dedent(source).replace("MARKER", repr(str(marker)))
+            text = textwrap.dedent(source)
+            for name, value in paths.items():
+                text = text.replace(name, repr(str(value)))
             (folder / TARGET / MODULE).write_text(text)
+    # a classmate with the perfect solution, graded by the same runners
+    shutil.copytree(released, cls / "victim")
+    shutil.copyfile(SOURCE / TARGET / MODULE, cls / "victim" / TARGET / MODULE)
+    # a hard link to (a copy of) the reference, and a submission folder that is a symbolic link
+    shutil.copytree(released, cls / "hard_link")
+    (base / "copy.py").write_text(SOLUTION)
+    (cls / "hard_link" / TARGET / MODULE).unlink()
+    os.link(base / "copy.py", cls / "hard_link" / TARGET / MODULE)
+    shutil.copytree(cls / "victim", base / "elsewhere")
+    (cls / "symlinked_folder").symlink_to(base / "elsewhere")
+    # names a spreadsheet would run, or that forge a summary line
+    for evil in ('=HYPERLINK("evil.example","x")', "forged\nvictim 98"):
+        shutil.copytree(released, cls / evil)
     # the test editor also ships its own, always-passing tests and conftest
     for name in ("test_public.py", "test_hidden.py", "conftest.py"):
         (cls / "edit_tests" / TARGET / name).write_text(
@@ -369,16 +494,19 @@ def hostile(released, tmp_path_factory):
     assert noisy != SOLUTION
     (chatty / TARGET / MODULE).write_text(
         "import sys\nsys.stdout.write('x' * 20_000_000)\nsys.stderr.write('y' * 5_000_000)\n" + noisy)
-    saved = os.environ.get("TMPDIR")
-    os.environ["TMPDIR"] = str(base)  # keep every runner folder (and attack) inside base
+    tmp = base / "tmp"
+    tmp.mkdir()
+    saved, saved_dir = os.environ.get("TMPDIR"), tempfile.tempdir
+    os.environ["TMPDIR"] = tempfile.tempdir = str(tmp)  # every grader and runner folder goes here
     try:
         results = grade([cls], source=SOURCE, jobs=2, timeout=TIMEOUT, only=[TARGET])
     finally:
+        tempfile.tempdir = saved_dir
         if saved is None:
             del os.environ["TMPDIR"]
         else:
             os.environ["TMPDIR"] = saved
-    return {r.student: r for r in results}, marker
+    return {r.submission.split(os.sep)[-1]: r for r in results}, marker, base
 
 
 def outcomes_of(result):
@@ -386,16 +514,91 @@ def outcomes_of(result):
     return ex.tests
 
 
+def _processes_with(tag: str) -> list[int]:
+    found = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                if tag.encode() in (entry / "cmdline").read_bytes():
+                    found.append(int(entry.name))
+            except OSError:
+                pass
+    return found
+
+
 def test_hostile_submissions_score_no_more_than_an_empty_one(hostile):
-    results, _ = hostile
+    results = hostile[0]
     empty = results["empty"].total
     assert empty == 0
-    for name in HOSTILE:
+    for name in [n for n in HOSTILE if n in results] + ["hard_link", "symlinked_folder"]:
         assert results[name].total <= empty, (name, [(t.test, t.reason) for t in outcomes_of(results[name])])
         assert results[name].max_points == results["empty"].max_points
 
 
-@pytest.mark.parametrize("name", [n for n, r in REASONS.items() if r])
+def test_the_victim_keeps_full_marks(hostile):
+    victim = hostile[0]["victim"]
+    assert victim.total == victim.max_points > 0, [(t.test, t.reason) for t in outcomes_of(victim)]
+
+
+@needs_isolation
+def test_nothing_outlives_grading_and_nothing_is_left_behind(hostile):
+    _, _, base = hostile
+    assert _processes_with("mslab-redteam-daemon") == []
+    assert list((base / "tmp").iterdir()) == []  # no runner folder, no hidden test, no student file
+    assert not list(base.glob("junk*"))
+    assert (base / "gradebook.csv").read_text() == "student,total\n"
+    assert (base / "reference_copy.py").read_text() == SOLUTION
+    assert not SITE_PTH.exists()
+
+
+@needs_isolation
+def test_the_sandbox_cannot_import_mslab_nor_read_the_source(hostile):
+    results = hostile[0]
+    assert all("No module named 'mslab'" in t.reason for t in outcomes_of(results["import_mslab"]))
+    for name in ("load_reference", "read_classmate"):  # nothing to find: whatever they do fails
+        assert results[name].total == 0 and not any(t.passed for t in outcomes_of(results[name])), name
+
+
+def test_plain_files_only(hostile):
+    results = hostile[0]
+    assert all("hard links" in t.reason for t in outcomes_of(results["hard_link"]))
+    assert all("symbolic link" in t.reason for t in outcomes_of(results["symlinked_folder"]))
+
+
+def test_a_huge_reply_is_refused_not_decoded(hostile):
+    reasons = [t.reason for t in outcomes_of(hostile[0]["huge_reply"])]
+    assert all("not data" in r or "larger than" in r or "hidden test" in r or "time limit" in r
+               for r in reasons), reasons
+    # the decoder refuses ten million empty lists before building them (it would take gigabytes)
+    with pytest.raises(WireError, match="lists or dicts"):
+        loads(b"[" + b"[]," * 10_000_000 + b"[]]")
+
+
+def test_evil_names_are_escaped_in_reports_and_csv(hostile):
+    results = hostile[0]
+    formula = results['=HYPERLINK("evil.example","x")']
+    forged = results["forged\nvictim 98"]
+    rows = gradebook_rows([formula, forged])
+    assert rows[1][0].startswith("'=") and "\n" not in rows[2][0]
+    report = format_report(forged)
+    assert report.splitlines()[0].startswith("forged\\x0avictim")
+    assert "isolation:" in report.splitlines()[1]
+
+
+def test_hidden_test_reasons_quote_no_test_text(hostile):
+    for result in hostile[0].values():
+        for t in outcomes_of(result):
+            if t.test.startswith("test_hidden") and not t.passed:
+                assert t.reason.startswith("hidden test") or "time limit" in t.reason \
+                    or "process" in t.reason or "missing function" in t.reason \
+                    or "import" in t.reason or "Error" in t.reason or "missing" in t.reason \
+                    or "refused" in t.reason or "not plain data" in t.reason, t.reason
+                # no value, shape or message of the hidden test's own checks
+                assert "worst error" not in t.reason and "shape (" not in t.reason, t.reason
+                assert not re.search(r"expected -?[\d(\[]", t.reason), t.reason
+
+
+@pytest.mark.parametrize("name", [n for n, r in REASONS.items() if r and (ISOLATED or n not in RISKY)])
 def test_hostile_case_gets_a_clear_reason(hostile, name):
     for t in outcomes_of(hostile[0][name]):
         assert not t.passed and REASONS[name] in t.reason, (t.test, t.reason)
@@ -422,14 +625,17 @@ def test_wrong_shape_and_dtype_are_named(hostile):
 
 def test_patching_pytest_and_helpers_changes_nothing(hostile):
     reasons = [t.reason for t in outcomes_of(hostile[0]["patch_pytest_and_helpers"])]
-    assert all("wrong values" in r or "expected" in r for r in reasons), reasons
+    # isolated, pytest is not even importable; otherwise the patches change only the sandbox
+    assert all("wrong values" in r or "expected" in r or "wrong result" in r or "No module named" in r
+               for r in reasons), reasons
 
 
 def test_forged_results_and_proc_fds_do_not_count(hostile):
-    results, marker = hostile
+    results, marker, _ = hostile
     assert results["forge_results"].total == 0
-    # the runner is not dumpable: the sandbox could not open any of its descriptors
-    assert json.loads(marker.read_text()) == []
+    # isolated, the sandbox cannot even write the marker; otherwise the runner is not
+    # dumpable and the sandbox could not open any of its descriptors
+    assert not marker.exists() or json.loads(marker.read_text()) == []
 
 
 def test_edited_and_shipped_tests_are_ignored(hostile):
@@ -440,11 +646,11 @@ def test_edited_and_shipped_tests_are_ignored(hostile):
 
 def test_symlink_to_the_solution_is_refused(hostile):
     tests = outcomes_of(hostile[0]["symlink"])
-    assert hostile[0]["symlink"].total == 0 and all("links outside" in t.reason for t in tests)
+    assert hostile[0]["symlink"].total == 0 and all("symbolic link" in t.reason for t in tests)
 
 
 def test_killing_the_runner_costs_only_the_killer(hostile):
-    results, _ = hostile
+    results = hostile[0]
     assert results["kill_runner"].total == 0
     # everyone graded by the same runner still got a real verdict, not "runner stopped"
     for name, result in results.items():

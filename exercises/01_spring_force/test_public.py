@@ -36,9 +36,12 @@ def test_internal_forces_sum_to_zero(student):
     rng = np.random.default_rng(2)
     x = rng.normal(size=(4, 3))
     springs = np.array([[0, 1], [1, 2], [2, 3], [3, 0]])
-    f = student.spring_forces(x, springs, np.full(4, 7.0), np.full(4, 0.8))
+    k, rest = np.full(4, 7.0), np.full(4, 0.8)
+    f = student.spring_forces(x, springs, k, rest)
     check_shape(f, (4, 3), what="forces")
     check_array(f.sum(axis=0), np.zeros(3), atol=1e-10, what="sum of forces")
+    # and not by being zero: the forces are the library's
+    check_array(f, mslab_springs(springs, k, rest, 4).force(x, 0 * x), rtol=1e-10, atol=1e-10, what="forces")
 
 
 @pytest.mark.points(3)

@@ -50,3 +50,19 @@ def test_symplectic_eulers_keep_the_energy_bounded(student):
         assert np.all(np.isfinite(e)) and np.max(np.abs(e / e[0] - 1.0)) < 0.06, f"{name}: energy drifts"
         ref = reference_run(name.removesuffix("_step"), prob, prob.x0, prob.v0, 0.1, steps=400)
         check_array(x, ref.x, rtol=1e-8, atol=1e-10, what=f"{name}: x after 400 steps")
+
+
+@pytest.mark.points(1)
+def test_all_three_on_a_chain_drawn_at_grading(student):
+    # fresh inputs every grading: no table of answers can pass
+    rng = np.random.default_rng()
+    prob = problem("chain", n=int(rng.integers(3, 7)), dim=int(rng.integers(1, 4)),
+                   stiffness=float(rng.uniform(20, 200)), gamma=float(rng.uniform(0, 1)), sag=0.2)
+    v0 = rng.normal(size=prob.x0.shape) * (~prob.pinned)[:, None]
+    dt = float(rng.uniform(1e-3, 1e-2))
+    for name in ("euler", "symplectic_euler", "symplectic_euler_x"):
+        ref = reference_run(name, prob, prob.x0, v0, dt)
+        step = "forward_euler_step" if name == "euler" else f"{name}_step"
+        x, v = getattr(student, step)(prob.x0, v0, prob, dt)
+        check_array(x, ref.x, rtol=1e-10, atol=1e-12, what=f"{step}: x_new")
+        check_array(v, ref.v, rtol=1e-10, atol=1e-12, what=f"{step}: v_new")

@@ -45,3 +45,18 @@ def test_both_in_3d_with_velocities(student):
             x, v = getattr(student, f"{name}_step")(x, v, prob, 0.02)
         check_array(x, ref.x, rtol=1e-9, atol=1e-12, what=f"{name}: x after 3 steps")
         check_array(v, ref.v, rtol=1e-9, atol=1e-12, what=f"{name}: v after 3 steps")
+
+
+@pytest.mark.points(1)
+def test_both_on_a_chain_drawn_at_grading(student):
+    # fresh inputs every grading: no table of answers can pass
+    rng = np.random.default_rng()
+    prob = problem("chain", n=int(rng.integers(3, 7)), dim=int(rng.integers(2, 4)),
+                   stiffness=float(rng.uniform(20, 200)), gamma=float(rng.uniform(0, 1)), sag=0.3)
+    v0 = rng.normal(size=prob.x0.shape) * (~prob.pinned)[:, None]
+    dt = float(rng.uniform(1e-3, 1e-2))
+    for name in ("heun", "midpoint"):
+        ref = reference_run(name, prob, prob.x0, v0, dt)
+        x, v = getattr(student, f"{name}_step")(prob.x0, v0, prob, dt)
+        check_array(x, ref.x, rtol=1e-10, atol=1e-12, what=f"{name}: x_new")
+        check_array(v, ref.v, rtol=1e-10, atol=1e-12, what=f"{name}: v_new")

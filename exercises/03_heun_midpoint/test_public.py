@@ -17,12 +17,20 @@ def pair(out, shape):
 
 
 @pytest.mark.points(2)
-def test_heun_on_an_oscillator_by_hand(student):
-    # u'' = -u from u = 0.5 at rest, h = 0.1: u1 = 0.5 (1 - h^2/2), u1' = -0.5 h
-    prob = problem("oscillator", stiffness=1.0, displacement=0.5)
-    x, v = pair(student.heun_step(prob.x0, prob.v0, prob, 0.1), (2, 1))
-    check_array(x, np.array([[0.0], [1.0 + 0.5 * (1 - 0.005)]]), what="x_new")
-    check_array(v, np.array([[0.0], [-0.05]]), what="v_new")
+def test_heun_on_a_swinging_spring_by_hand(student):
+    # seed eqs. 11-12 with the trusted acceleration. The spring swings sideways, so the
+    # problem is nonlinear: on a linear one (any oscillator along its axis) Heun and the
+    # midpoint method take exactly the same step and this test could not tell them apart.
+    prob = problem("oscillator", stiffness=1.0, displacement=0.5, dim=2)
+    x0, v0, h = prob.x0, np.array([[0.0, 0.0], [0.0, 0.8]]), 0.1
+    a0 = prob(x0, v0)
+    x_e, v_e = x0 + h * v0, v0 + h * a0  # the Euler predictor
+    x_heun, v_heun = x0 + h / 2 * (v0 + v_e), v0 + h / 2 * (a0 + prob(x_e, v_e))
+    v_mid = v0 + h * prob(x0 + h / 2 * v0, v0 + h / 2 * a0)
+    assert np.max(np.abs(v_mid - v_heun)) > 1e-6  # the midpoint answer fails this test
+    x, v = pair(student.heun_step(x0, v0, prob, h), (2, 2))
+    check_array(x, x_heun, what="x_new")
+    check_array(v, v_heun, what="v_new")
 
 
 @pytest.mark.points(2)

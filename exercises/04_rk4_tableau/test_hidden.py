@@ -47,3 +47,18 @@ def test_student_rk4_tableau_drives_the_library(student):
     ref = reference_run("rk4", prob, prob.x0, prob.v0, 0.05)
     mine = ExplicitRK(A, b, c).step(prob.system(), State(prob.x0, prob.v0), 0.05)
     check_array(mine.x, ref.x, what="x_new from your tableau")
+
+
+@pytest.mark.points(1)
+def test_a_tableau_drawn_at_grading(student):
+    # fresh tableau and state every grading: no table of answers can pass
+    rng = np.random.default_rng()
+    s = int(rng.integers(2, 6))
+    A = np.tril(rng.uniform(-1, 1, (s, s)), k=-1)
+    b = rng.uniform(0, 1, s)
+    prob = problem("chain", n=int(rng.integers(3, 6)), dim=2, stiffness=float(rng.uniform(10, 80)), sag=0.2)
+    v0 = rng.normal(size=prob.x0.shape) * (~prob.pinned)[:, None]
+    ref = ExplicitRK(A, b).step(prob.system(), State(prob.x0, v0), 0.02)
+    x, v = student.rk_step(prob.x0, v0, prob, 0.02, A, b)
+    check_array(x, ref.x, rtol=1e-9, atol=1e-12, what="x_new")
+    check_array(v, ref.v, rtol=1e-9, atol=1e-12, what="v_new")

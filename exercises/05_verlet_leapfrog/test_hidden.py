@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from mslab.grading.checks import check_array, fitted_order
+from mslab.grading.checks import check_array, fitted_order, reference_run
 from mslab.grading.problems import problem
 from mslab.scenes.generators import oscillator_solution
 
@@ -32,6 +32,9 @@ def test_verlet_and_leapfrog_give_the_same_positions(student):
     xv = verlet(student, prob, v0, 0.02, 40)
     xl = leapfrog(student, prob, v0, 0.02, 40)
     check_array(xv, xl, rtol=1e-8, atol=1e-10, what="Verlet vs leapfrog after 40 steps")
+    # ... and both are the library's Verlet (two methods that never move agree too)
+    ref = reference_run("verlet", prob, prob.x0, v0, 0.02, steps=40)
+    check_array(xv, ref.x, rtol=1e-8, atol=1e-10, what="Verlet after 40 steps")
 
 
 @pytest.mark.points(2)
@@ -51,9 +54,26 @@ def test_leapfrog_stays_bounded_near_its_limit(student):
     prob = problem("oscillator", stiffness=1.0, displacement=0.2)
     x = prob.x0
     vh = student.leapfrog_start(prob.x0, prob.v0, prob, 1.9)
-    peak = 0.0
+    u = []
     for _ in range(300):
         x, vh = student.leapfrog_step(x, vh, prob, 1.9)
-        peak = max(peak, abs(float(x[1, 0]) - 1.0))
+        u.append(float(x[1, 0]) - 1.0)
+    peak = max(abs(min(u)), abs(max(u)))
     assert peak < 1.0, f"amplitude grew to {peak:.3g}"
-    assert peak > 0.15, f"amplitude shrank to {peak:.3g} (leapfrog does not damp)"
+    # it oscillates (a step that never moves stays "bounded" too) and does not damp
+    assert min(u) < -0.15 and max(u) > 0.15, f"u stays in [{min(u):.3g}, {max(u):.3g}]: no oscillation"
+    assert max(abs(w) for w in u[-50:]) > 0.15, "the amplitude shrank (leapfrog does not damp)"
+
+
+@pytest.mark.points(1)
+def test_both_on_a_chain_drawn_at_grading(student):
+    # fresh inputs every grading: no table of answers can pass
+    rng = np.random.default_rng()
+    prob = problem("chain", n=int(rng.integers(3, 7)), dim=int(rng.integers(2, 4)),
+                   stiffness=float(rng.uniform(20, 100)), sag=0.3)
+    v0 = rng.normal(size=prob.x0.shape) * (~prob.pinned)[:, None]
+    dt, n = float(rng.uniform(2e-3, 1e-2)), int(rng.integers(3, 8))
+    ref = reference_run("verlet", prob, prob.x0, v0, dt, steps=n)
+    check_array(verlet(student, prob, v0, dt, n), ref.x, rtol=1e-9, atol=1e-11, what="Verlet x")
+    ref = reference_run("leapfrog", prob, prob.x0, v0, dt, steps=n)
+    check_array(leapfrog(student, prob, v0, dt, n), ref.x, rtol=1e-9, atol=1e-11, what="leapfrog x")

@@ -47,6 +47,8 @@ def test_fixed_point_solves_a_small_step(student):
 
 @pytest.mark.points(2)
 def test_fixed_point_refuses_a_large_step(student):
-    # dt * w ~ 2 >> 1: the fixed-point map is no contraction
+    # dt * w ~ 2 >> 1: the fixed-point map is no contraction; the same function solves a small step
     prob, v0 = stiff_chain()
+    x, v, _ = triple(student.implicit_euler_fixed_point(prob.x0, v0, prob, 1e-4), prob.x0.shape)
+    check_solves_implicit_euler(prob, prob.x0, v0, x, v, 1e-4, 1e-8)
     check_raises(RuntimeError, student.implicit_euler_fixed_point, prob.x0, v0, prob, 0.01)

@@ -58,3 +58,21 @@ def test_interval_of_a_damped_euler_variant(student):
     A = np.array([[0.0, 0.0], [0.5, 0.0]])
     b = np.array([0.5, 0.5])
     check_scalar(student.real_stability_interval(A, b), left_end(A, b), rtol=1e-9, what="a")
+
+
+@pytest.mark.points(1)
+def test_interval_of_a_tableau_drawn_at_grading(student):
+    # s Euler substeps of random lengths c_i (A[i, :i] = c[:i], b = c): R(z) = prod(1 + c_i z),
+    # |R| <= 1 on the whole of [a, 0] for near-equal substeps; a lies anywhere in about [-17, -2]
+    rng = np.random.default_rng()
+    s = int(rng.integers(2, 5))
+    c = rng.uniform(0.7, 1.3, s)
+    c *= rng.uniform(0.5, 2.0) / c.sum()
+    A = np.zeros((s, s))
+    for i in range(1, s):
+        A[i, :i] = c[:i]
+    b = c.copy()
+    check_scalar(student.real_stability_interval(A, b), left_end(A, b), rtol=1e-9, what="a")
+    z = rng.normal(size=5) + 1j * rng.normal(size=5)
+    check_array(student.stability_function(A, b, z), stage_recursion(A, b, z), rtol=1e-10, atol=1e-12,
+                what="R(z)")

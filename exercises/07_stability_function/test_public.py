@@ -7,6 +7,7 @@ import pytest
 
 from mslab.grading.checks import check_array, check_scalar
 from mslab.integrators import get_method
+from mslab.stability import real_interval
 
 MODULE = "stability_function"
 
@@ -33,3 +34,7 @@ def test_euler_and_heun_intervals_end_at_minus_two(student):
     for name in ("euler", "heun"):
         m = get_method(name)
         check_scalar(student.real_stability_interval(m.A, m.b), -2.0, rtol=1e-9, what=f"{name}: a")
+    # not -2 for every method: RK4's interval reaches about -2.785 (the library's value)
+    rk4 = get_method("rk4")
+    check_scalar(student.real_stability_interval(rk4.A, rk4.b), float(real_interval("rk4")), rtol=1e-8,
+                 what="rk4: a")

@@ -55,3 +55,19 @@ def test_friction_opposes_sliding_and_obeys_coulomb(student):
     vt = v - (v @ n)[:, None] * n
     assert np.all(np.sum(ft * vt, axis=1) < 0), "friction must oppose the tangential velocity"
     check_array(np.linalg.norm(ft, axis=1), np.full(6, mu * k * 0.05), rtol=1e-5, what="|f_t| when sliding")
+
+
+@pytest.mark.points(1)
+def test_a_plane_drawn_at_grading(student):
+    # fresh plane, state and coefficients every grading: no table of answers can pass
+    rng = np.random.default_rng()
+    dim = int(rng.integers(2, 4))
+    n = rng.normal(size=dim)
+    n /= np.linalg.norm(n)
+    x, v = rng.normal(size=(7, dim)) * 0.3, rng.normal(size=(7, dim))
+    offset, k, mu, eps = float(rng.uniform(-0.1, 0.1)), float(rng.uniform(1e2, 1e4)), \
+        float(rng.uniform(0, 1)), 1e-3
+    plane = Plane(n, offset, stiffness=k, friction=mu, slip_velocity=eps)
+    check_array(student.penetration_depth(x, n, offset), offset - x @ n, rtol=1e-12, atol=1e-12, what="depth")
+    check_array(student.plane_contact_force(x, v, n, offset, k, mu, eps), plane.force(x, v),
+                rtol=1e-9, atol=1e-9, what="force")

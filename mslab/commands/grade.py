@@ -2,31 +2,70 @@
 
 from __future__ import annotations
 
-import csv
 import os
+import sys
+import time
+from pathlib import Path
 
-from mslab.commands.common import CommandError, add_common_options, atomic_write, emit_json, say
-from mslab.grading.autograde import format_report, grade, gradebook_rows
+from mslab.commands.common import CommandError, add_common_options, emit_json, say
+from mslab.grading.autograde import grade
+from mslab.grading.isolation import DESCRIPTION
 from mslab.grading.layout import default_source
+from mslab.grading.report import format_report, gradebook_rows, printable, write_csv
+
+#: seconds of grading before a progress line appears (on a terminal only)
+PROGRESS_AFTER = 2.0
 
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
         "grade", help="grade submissions (one folder, or a class folder of them)",
         description="Run every test (public and hidden, from --source) on each submission; student "
-                    "code runs in a sandbox process with time and memory limits.")
+                    "code runs isolated by the operating system where it can (namespaces), with time "
+                    "and memory limits.")
     p.add_argument("submissions", nargs="+", metavar="SUBMISSION",
                    help="a submission folder (NN_topic/ inside) or a class folder <student>/")
-    p.add_argument("--source", default=None, help="instructor's exercises with all tests"
-                   "(default: exercises)")
+    p.add_argument("--source", default=None,
+                   help="the instructor's exercises with all tests (required unless the current "
+                        "folder holds them as exercises/)")
     p.add_argument("--csv", metavar="FILE", default=None, help="write a gradebook (one row per student)")
+    p.add_argument("--journal", metavar="FILE", default=None,
+                   help="record each result as it arrives (default with --csv: FILE.journal)")
+    p.add_argument("--resume", action="store_true",
+                   help="continue an interrupted grading from its journal")
     p.add_argument("--timeout", type=float, default=10.0, metavar="S", help="seconds per test (default 10)")
     p.add_argument("--memory", type=int, default=1024, metavar="MB", help="memory limit of student code")
     p.add_argument("--jobs", type=int, default=None, metavar="N", help="parallel runners (default: cores)")
     p.add_argument("--exercise", action="append", default=None, metavar="NAME",
                    help="grade only this exercise (repeatable)")
+    p.add_argument("--isolation", default="auto", choices=["auto", "bwrap", "namespaces", "rlimits"],
+                   help="how student code is isolated (default: the strongest available)")
+    p.add_argument("--require-isolation", action="store_true",
+                   help="refuse to grade where the machine offers no namespaces")
     add_common_options(p, out=False)
     p.set_defaults(func=run)
+
+
+class Progress:
+    """``grading: 37/240 items`` on stderr, once grading has taken 2 s, on a terminal only."""
+
+    def __init__(self, enabled: bool):
+        self.enabled = enabled
+        self.start = time.monotonic()
+        self.shown = False
+
+    def __call__(self, done: int, total: int) -> None:
+        if not self.enabled or time.monotonic() - self.start < PROGRESS_AFTER:
+            return
+        elapsed = time.monotonic() - self.start
+        sys.stderr.write(f"\rgrading: {done}/{total} items ({elapsed:.0f} s)   ")
+        sys.stderr.flush()
+        self.shown = True
+
+    def close(self) -> None:
+        if self.shown:
+            sys.stderr.write("\r" + " " * 50 + "\r")
+            sys.stderr.flush()
 
 
 def run(args) -> int:
@@ -34,16 +73,32 @@ def run(args) -> int:
         raise CommandError("must be positive", key="--timeout")
     if args.jobs is not None and args.jobs < 1:
         raise CommandError("must be at least 1", key="--jobs")
+    source = args.source or default_source()
+    if source is None:
+        raise CommandError("--source is required: the instructor's exercises folder (with the hidden "
+                           "tests); this folder has no exercises/ with hidden tests")
+    journal = args.journal or (f"{args.csv}.journal" if args.csv else None)
+    if args.resume and not journal:
+        raise CommandError("--resume needs --csv or --journal (where the interrupted grading wrote)")
+    if args.resume and not Path(journal).is_file():
+        raise CommandError(f"{journal}: no journal to resume from")
+    progress = Progress(sys.stderr.isatty() and not args.json)
     try:
-        results = grade(args.submissions, source=args.source or default_source(), jobs=args.jobs,
-                        timeout=args.timeout, memory_mb=args.memory, only=args.exercise)
+        results = grade(args.submissions, source=source, jobs=args.jobs, timeout=args.timeout,
+                        memory_mb=args.memory, only=args.exercise, isolation=args.isolation,
+                        require_isolation=args.require_isolation, journal=journal, resume=args.resume,
+                        progress=progress)
     except ValueError as err:
         raise CommandError(str(err)) from None
+    finally:
+        progress.close()
+    if results and results[0].isolation == DESCRIPTION["rlimits"]:
+        print("mslab: warning: grading is not isolated (no namespaces on this machine): student code "
+              "ran as your user; use --require-isolation to refuse", file=sys.stderr)
     if args.csv:
-        def write(tmp: str) -> None:
-            with open(tmp, "w", newline="") as fh:
-                csv.writer(fh).writerows(gradebook_rows(results))
-        atomic_write(args.csv, write)
+        write_csv(args.csv, gradebook_rows(results))
+    if journal:
+        Path(journal).unlink(missing_ok=True)  # the class is graded: nothing to resume
     if args.json:
         docs = [r.to_dict() for r in results]
         emit_json(docs[0] if len(docs) == 1 else {"submissions": docs})
@@ -53,7 +108,7 @@ def run(args) -> int:
         if len(results) > 1:
             say(args, "")
             for r in results:
-                say(args, f"{r.student:<24} {r.total:g}/{r.max_points:g}")
+                say(args, f"{printable(r.student, 24):<24} {r.total:g}/{r.max_points:g}")
     if args.csv:
         say(args, f"gradebook: {os.fspath(args.csv)}")
     return 0

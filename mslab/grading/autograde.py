@@ -12,25 +12,22 @@ crashes, hangs or reports nonsense can only lose points, never add any.
 
 from __future__ import annotations
 
-import json
+import contextlib
 import os
 import secrets
-import selectors
 import signal
-import subprocess
-import sys
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from mslab.grading.layout import Exercise, expand_submissions, find_exercises, read_student_file
+from mslab.grading.dispatch import RUNNER_SLACK, STOP, clean_stale_folders, run_runner
+from mslab.grading.isolation import DESCRIPTION, detect
+from mslab.grading.layout import HIDDEN, Exercise, expand_submissions, find_exercises, read_student_file
 from mslab.grading.remote import set_not_dumpable
+from mslab.grading.report import Journal, fingerprint, format_report, gradebook_rows, item_key, printable
 
-#: seconds a runner may need beyond its tests' time limits (interpreter, pytest, imports)
-RUNNER_SLACK = 60.0
-#: bytes of runner output the grader reads at most
-MAX_RUNNER_OUTPUT = 4 * 1024 * 1024
-
+__all__ = ["ExerciseResult", "SubmissionResult", "TestResult", "format_report", "grade", "gradebook_rows"]
 
 @dataclass
 class TestResult:
@@ -61,6 +58,7 @@ class SubmissionResult:
     submission: str
     student: str
     exercises: list[ExerciseResult] = field(default_factory=list)
+    isolation: str = ""
 
     @property
     def total(self) -> float:
@@ -72,7 +70,7 @@ class SubmissionResult:
 
     def to_dict(self) -> dict:
         return {
-            "student": self.student, "submission": self.submission,
+            "student": self.student, "submission": self.submission, "isolation": self.isolation,
             "total": self.total, "max": self.max_points,
             "exercises": [{"name": e.name, "total": e.total, "max": e.max_points, "errors": e.errors,
                            "tests": [{"test": t.test, "points": t.points, "max": t.max_points,
@@ -81,51 +79,38 @@ class SubmissionResult:
         }
 
 
-def _run_runner(job: dict, wall_limit: float) -> tuple[dict, str]:
-    """Start one runner, feed it the job; ``{key: outcome}`` of the items it finished, and why not all."""
-    env = dict(os.environ, PYTEST_DISABLE_PLUGIN_AUTOLOAD="1", PYTHONDONTWRITEBYTECODE="1")
-    env.pop("PYTEST_ADDOPTS", None)
-    proc = subprocess.Popen([sys.executable, "-E", "-s", "-P", "-m", "mslab.grading.runner"],
-                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-                            start_new_session=True, env=env, cwd=os.path.abspath(os.sep))
-    why = ""
+@contextlib.contextmanager
+def _interrupts():
+    """SIGTERM behaves like Ctrl-C while grading: runners are stopped, folders removed."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum, frame):
+        raise KeyboardInterrupt
+
+    old = signal.signal(signal.SIGTERM, handler)
     try:
-        # wait for "ready": the runner is non-dumpable before the nonce reaches its stdin
-        sel = selectors.DefaultSelector()
-        sel.register(proc.stdout, selectors.EVENT_READ)
-        ready = sel.select(timeout=RUNNER_SLACK)
-        sel.close()
-        if not ready or proc.stdout.readline() != b"ready\n":
-            return {}, "the test runner did not start"
-        out, _ = proc.communicate(json.dumps(job).encode(), timeout=wall_limit)
-    except subprocess.TimeoutExpired:
-        _killpg(proc)
-        out = b""
-        why = f"grading took longer than {wall_limit:.0f} s"
+        yield
     finally:
-        _killpg(proc)
-    done = {}
-    prefix = job["nonce"] + " "
-    for line in out[:MAX_RUNNER_OUTPUT].decode(errors="replace").splitlines():
-        if not line.startswith(prefix):
-            continue
-        try:
-            msg = json.loads(line[len(prefix):])
-        except ValueError:
-            continue
-        if isinstance(msg, dict) and isinstance(msg.get("outcome"), dict):
-            done[str(msg.get("key"))] = msg["outcome"]
-    if len(done) < len(job["items"]) and not why:
-        why = f"the test runner stopped (exit code {proc.returncode})"
-    return done, why
+        signal.signal(signal.SIGTERM, old)
 
 
-def _killpg(proc: subprocess.Popen) -> None:
-    try:
-        os.killpg(proc.pid, signal.SIGKILL)
-    except (ProcessLookupError, PermissionError):
-        pass
-    proc.wait()
+def _reason(test: str, entry: dict) -> str:
+    """The reason shown for a failed test; for a hidden test, its kind only (never its text)."""
+    text = str(entry.get("reason", "failed"))[:200]
+    if not HIDDEN.match(test.split("::")[0]):
+        return text
+    kind = entry.get("kind")
+    if kind == "process":
+        return text  # the runner's own words about the student's process
+    if kind == "raised":
+        etype = str(entry.get("etype", ""))
+        etype = etype if etype.isidentifier() else "an exception"
+        return f"hidden test: your code raised {etype}"
+    if kind == "wrong":
+        return "hidden test: wrong result"
+    return "hidden test: failed"
 
 
 def _score(exercise: Exercise, outcome: dict, errors: list[str], reason_all: str) -> ExerciseResult:
@@ -137,51 +122,48 @@ def _score(exercise: Exercise, outcome: dict, errors: list[str], reason_all: str
         if passed:
             reason = "ok"
         elif entry and not errors:
-            reason = str(entry.get("reason", "failed"))[:200]
+            reason = _reason(test, entry)
         else:
             reason = errors[0] if errors else reason_all
         result.tests.append(TestResult(test, max_points if passed else 0.0, max_points, passed, reason))
     return result
 
 
-def _run_items(items: list[dict], timeout: float, memory_mb: int) -> tuple[dict, str]:
-    """Run items in one runner: ``({key: outcome}, why some are missing)``."""
-    job = {"nonce": secrets.token_hex(16), "timeout": timeout, "memory_mb": memory_mb,
+def _run_items(items: list[dict], timeout: float, memory_mb: int, mode: str, on_item) -> tuple[set, str]:
+    """Run items in one runner: ``(keys finished, why some are missing)``."""
+    job = {"nonce": secrets.token_hex(16), "timeout": timeout, "memory_mb": memory_mb, "isolation": mode,
            "import_timeout": max(30.0, timeout), "items": items}
     wall = sum(timeout * (it["n_tests"] + 1) + max(30.0, timeout) for it in items) + RUNNER_SLACK
-    return _run_runner(job, wall)
+    return run_runner(job, wall, on_item)
 
 
-def _run_chunk(items: list[dict], timeout: float, memory_mb: int) -> dict:
-    """Run a chunk of items: ``{key: (outcome or None, why)}``.
+def _run_chunk(items: list[dict], timeout: float, memory_mb: int, mode: str, on_item) -> None:
+    """Run a chunk of items; ``on_item(key, outcome or None, why)`` for each.
 
-    The runner grades items in order and reports each as it finishes. If it dies (a
-    student's process may kill it) or overruns, the first unfinished item is the suspect:
-    it is re-run alone, and the items after it get a fresh runner, so one submission can
-    never cost another one points.
+    The runner grades items in order and reports each as it finishes. If it dies or
+    overruns, the first unfinished item is the suspect: it is re-run alone, and the items
+    after it get a fresh runner, so one submission can never cost another one points.
     """
-    out: dict = {}
     pending = list(items)
-    while pending:
-        done, why = _run_items(pending, timeout, memory_mb)
-        for it in pending:
-            if it["key"] in done:
-                out[it["key"]] = (done[it["key"]], "")
+    while pending and not STOP.is_set():
+        done, why = _run_items(pending, timeout, memory_mb, mode, lambda k, o: on_item(k, o, ""))
         rest = [it for it in pending if it["key"] not in done]
-        if not rest:
+        if not rest or STOP.is_set():
             break
         suspect = rest[0]
         if len(pending) == 1:  # it already ran alone
-            out[suspect["key"]] = (None, why or "not graded")
+            on_item(suspect["key"], None, why or "not graded")
             break
-        alone, why_alone = _run_items([suspect], timeout, memory_mb)
-        out[suspect["key"]] = (alone.get(suspect["key"]), why_alone or "not graded")
+        alone, why_alone = _run_items([suspect], timeout, memory_mb, mode, lambda k, o: on_item(k, o, ""))
+        if suspect["key"] not in alone:
+            on_item(suspect["key"], None, why_alone or "not graded")
         pending = rest[1:]
-    return out
 
 
-def grade(paths, source: str | Path = "exercises", jobs: int | None = None, timeout: float = 10.0,
-          memory_mb: int = 1024, only: list[str] | None = None) -> list[SubmissionResult]:
+def grade(paths, source: str | Path, jobs: int | None = None, timeout: float = 10.0,
+          memory_mb: int = 1024, only: list[str] | None = None, isolation: str = "auto",
+          require_isolation: bool = False, journal: str | Path | None = None, resume: bool = False,
+          progress=None) -> list[SubmissionResult]:
     """Grade submissions (folders of exercise folders, or classes of such folders).
 
     Parameters
@@ -191,14 +173,27 @@ def grade(paths, source: str | Path = "exercises", jobs: int | None = None, time
     source : path
         The instructor's tree: the tests and the list of exercises come from here.
     jobs : int
-        Runners in parallel (default: number of cores). The (submission, exercise) items
-        are dealt to ``jobs`` runners; each grades its items in turn.
+        Runners in parallel (default: number of cores).
     timeout : float
         Seconds per test (the student's calls of one test together).
     only : list of str, optional
         Grade only these exercise folders.
+    isolation : {"auto", "bwrap", "namespaces", "rlimits"}
+        How student code is isolated (:mod:`mslab.grading.isolation`); ``auto``: the strongest.
+    require_isolation : bool
+        Refuse (ValueError) rather than grade with resource limits only.
+    journal : path, optional
+        Append each item's outcome here as it arrives; removed once the class is graded.
+    resume : bool
+        Reuse the outcomes already in ``journal`` (same tests, limits and student files).
+    progress : callable, optional
+        ``progress(done, total)`` after each item.
     """
     set_not_dumpable()  # no process of ours may read the nonces from our memory
+    mode = detect(isolation)
+    if require_isolation and mode == "rlimits":
+        raise ValueError("isolation required, but this machine offers no namespaces (no bwrap, "
+                         "no user namespaces): grading would run student code as your user")
     exercises = find_exercises(source)
     if only:
         unknown = set(only) - {e.name for e in exercises}
@@ -207,56 +202,68 @@ def grade(paths, source: str | Path = "exercises", jobs: int | None = None, time
         exercises = [e for e in exercises if e.name in only]
     submissions = expand_submissions(paths, exercises)
     jobs = max(1, jobs or os.cpu_count() or 1)
-    sources, items = {}, []
-    for k, sub in enumerate(submissions):
+    clean_stale_folders()
+    book = Journal(journal, fingerprint(exercises, timeout, memory_mb), resume) if journal else None
+    outcomes: dict[str, tuple] = {}
+    fixed: dict[tuple, str] = {}
+    items, keys = [], {}
+    for k, (sub, refused) in enumerate(submissions):
         for ex in exercises:
-            text, why = read_student_file(sub, ex)
-            sources[(k, ex.name)] = why
-            if text is not None:
-                items.append({"key": f"{k}:{ex.name}", "name": ex.name, "module": ex.module,
-                              "student_source": text, "tests": ex.tests, "n_tests": len(ex.points),
-                              "cpu_s": int(timeout * len(ex.points) + 60)})
-    chunks = [items[j::jobs] for j in range(jobs) if items[j::jobs]]
-    outcomes: dict = {}
-    with ThreadPoolExecutor(max_workers=jobs) as pool:
-        for part in pool.map(lambda chunk: _run_chunk(chunk, timeout, memory_mb), chunks):
-            outcomes.update(part)
-    results = []
-    for k, sub in enumerate(submissions):
-        res = SubmissionResult(str(sub), sub.resolve().name)
-        for ex in exercises:
-            missing = sources[(k, ex.name)]
-            if missing:
-                res.exercises.append(_score(ex, {}, [missing], missing))
+            text, why = (None, refused) if refused else read_student_file(sub, ex)
+            if text is None:
+                fixed[(k, ex.name)] = why
                 continue
-            entry, why = outcomes[f"{k}:{ex.name}"]
-            if not isinstance(entry, dict):
+            key = item_key(sub, ex.name, text)
+            keys[(k, ex.name)] = key
+            if key in outcomes or any(it["key"] == key for it in items):
+                continue  # the same folder twice on the command line
+            if book is not None and isinstance(book.done.get(key), dict):
+                outcomes[key] = (book.done[key].get("entry"), str(book.done[key].get("why", "")))
+                continue
+            items.append({"key": key, "name": ex.name, "module": ex.module, "student_source": text,
+                          "tests": ex.tests, "n_tests": len(ex.points),
+                          "cpu_s": int(timeout * len(ex.points) + 60)})
+    lock = threading.Lock()
+    total = len(items)
+
+    def on_item(key: str, entry, why: str) -> None:
+        with lock:
+            if key in outcomes:
+                return
+            outcomes[key] = (entry, why)
+            if book is not None:
+                book.add(key, {"entry": entry, "why": why})
+            if progress is not None:
+                progress(sum(it["key"] in outcomes for it in items), total)
+
+    chunks = [items[j::jobs] for j in range(jobs) if items[j::jobs]]
+    STOP.clear()
+    try:
+        with _interrupts(), ThreadPoolExecutor(max_workers=jobs) as pool:
+            futures = [pool.submit(_run_chunk, chunk, timeout, memory_mb, mode, on_item) for chunk in chunks]
+            try:
+                for f in futures:
+                    f.result()
+            except BaseException:
+                STOP.set()
+                raise
+    finally:
+        if book is not None:
+            book.close(finished=False)
+    results = []
+    for k, (sub, _) in enumerate(submissions):
+        res = SubmissionResult(str(sub), printable(sub.name or str(sub)), isolation=DESCRIPTION[mode])
+        for ex in exercises:
+            if (k, ex.name) in fixed:
+                why = fixed[(k, ex.name)]
                 res.exercises.append(_score(ex, {}, [why], why))
+                continue
+            entry, why = outcomes.get(keys[(k, ex.name)], (None, "not graded"))
+            if not isinstance(entry, dict):
+                res.exercises.append(_score(ex, {}, [why or "not graded"], why or "not graded"))
                 continue
             outcome = entry.get("results") if isinstance(entry.get("results"), dict) else {}
             errors = [str(e)[:300] for e in entry.get("errors", [])][:10]
             res.exercises.append(_score(ex, outcome, errors, "not run"))
         results.append(res)
     return results
-
-
-def format_report(result: SubmissionResult) -> str:
-    """The human-readable score sheet of one submission."""
-    lines = [f"{result.student}  ({result.submission})"]
-    for ex in result.exercises:
-        lines.append(f"  {ex.name}: {ex.total:g}/{ex.max_points:g}")
-        for t in ex.tests:
-            mark = "pass" if t.passed else "FAIL"
-            tail = "" if t.passed else f"  {t.reason}"
-            lines.append(f"    {t.points:>4g}/{t.max_points:<4g} {mark}  {t.test}{tail}")
-    lines.append(f"  total: {result.total:g}/{result.max_points:g}")
-    return "\n".join(lines)
-
-
-def gradebook_rows(results: list[SubmissionResult]) -> list[list]:
-    """CSV rows: header, then one row per student (total, max, one column per exercise)."""
-    names = [e.name for e in results[0].exercises] if results else []
-    rows: list[list] = [["student", "total", "max", *names]]
-    for r in results:
-        rows.append([r.student, f"{r.total:g}", f"{r.max_points:g}", *(f"{e.total:g}" for e in r.exercises)])
-    return rows

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import ast
+import os
 import re
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -43,13 +45,16 @@ class Exercise:
         return float(sum(self.points.values()))
 
 
-def default_source() -> Path:
-    """``exercises/`` in the working folder, else the one next to the mslab package (a checkout)."""
+def default_source() -> Path | None:
+    """``exercises/`` when the current folder is the instructor's tree (it has hidden tests), else None.
+
+    The grader never falls back to the checkout's own ``exercises/`` from another folder:
+    a course grading its own copy must say ``--source``.
+    """
     here = Path("exercises")
-    if here.is_dir():
+    if here.is_dir() and any(here.glob("*/test_hidden*.py")):
         return here
-    checkout = Path(__file__).resolve().parents[2] / "exercises"
-    return checkout if checkout.is_dir() else here
+    return None
 
 
 def test_points(filename: str, source: str) -> dict[str, float]:
@@ -97,37 +102,58 @@ def is_submission(folder: Path, exercises: list[Exercise]) -> bool:
     return any((folder / n).is_dir() for n in names)
 
 
-def expand_submissions(paths, exercises: list[Exercise]) -> list[Path]:
-    """Submission folders from the command line: each path is one submission or a class of them."""
+def expand_submissions(paths, exercises: list[Exercise]) -> list[tuple[Path, str]]:
+    """Submission folders from the command line: each path is one submission or a class of them.
+
+    Returns ``(folder, refusal)`` pairs: ``refusal`` is empty, or why the folder is not
+    graded (a symbolic link: the student's work must be the student's own files).
+    """
     out = []
     for raw in paths:
         path = Path(raw)
         if not path.is_dir():
             raise ValueError(f"{path}: no such folder")
         if is_submission(path, exercises):
-            out.append(path)
+            out.append((path, _refusal(path)))
             continue
         students = [p for p in sorted(path.iterdir()) if p.is_dir() and not p.name.startswith(".")]
         if not students:
             raise ValueError(f"{path}: neither a submission (no exercise folders) nor a class of submissions")
-        out.extend(students)
+        out.extend((p, _refusal(p)) for p in students)
     return out
+
+
+def _refusal(folder: Path) -> str:
+    return "the submission folder is a symbolic link (refused)" if folder.is_symlink() else ""
 
 
 def read_student_file(submission: Path, exercise: Exercise) -> tuple[str | None, str]:
     """The student's source for an exercise and ``""``, or None and why it was not read.
 
-    Symbolic links are not followed out of the submission (a link to the reference
-    solution must not count as the student's work).
+    Only plain files count: no symbolic link (the folder, the exercise folder or the file),
+    no file with a second hard link (it could be the reference solution), nothing but a
+    regular file, opened without following links.
     """
-    path = submission / exercise.name / exercise.module
+    folder = submission / exercise.name
+    path = folder / exercise.module
+    name = exercise.module
     try:
-        if not path.is_file():
-            return None, f"{exercise.module} is missing from the submission"
-        if not path.resolve().is_relative_to(submission.resolve()):
-            return None, f"{exercise.module} links outside the submission"
-        if path.stat().st_size > MAX_SOURCE:
-            return None, f"{exercise.module} is larger than {MAX_SOURCE} bytes"
-        return path.read_bytes().decode("utf-8", errors="replace"), ""
+        if folder.is_symlink():
+            return None, f"{exercise.name} is a symbolic link (refused)"
+        if path.is_symlink():
+            return None, f"{name} is a symbolic link (refused)"
+        if not os.path.lexists(path):
+            return None, f"{name} is missing from the submission"
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+        with os.fdopen(fd, "rb") as fh:
+            st = os.fstat(fh.fileno())
+            if not stat.S_ISREG(st.st_mode):
+                return None, f"{name} is not a regular file (refused)"
+            if st.st_nlink != 1:
+                return None, f"{name} has {st.st_nlink} hard links (refused: submit a plain copy)"
+            if st.st_size > MAX_SOURCE:
+                return None, f"{name} is larger than {MAX_SOURCE} bytes"
+            data = fh.read(MAX_SOURCE + 1)
+        return data[:MAX_SOURCE].decode("utf-8", errors="replace"), ""
     except OSError as err:
-        return None, f"{exercise.module} could not be read ({err.strerror})"
+        return None, f"{name} could not be read ({err.strerror})"

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import ast
 import os
+import re
 import shutil
 import tempfile
 from pathlib import Path
@@ -13,6 +14,38 @@ from mslab.grading.layout import BEGIN, END, EXERCISE_NAME, HIDDEN
 #: never copied into a release
 SKIP_DIRS = {"__pycache__", ".pytest_cache", ".ipynb_checkpoints", ".ruff_cache"}
 SKIP_SUFFIXES = {".pyc", ".pyo"}
+#: anything that looks like a solution marker (variants the release does not understand)
+MARKER_LIKE = re.compile(r"(BEGIN|END)[ _]+(SOLUTION|HIDDEN)", re.IGNORECASE)
+
+STUDENT_README = """# Exercises
+
+One folder per exercise, in the order of the lessons. Each holds a `README.md` (the task and
+its equations), one Python file with the functions to write (replace every
+`raise NotImplementedError`; keep the file name and the function names) and
+`test_public.py`, tests you can run yourself.
+
+## Run the public tests on your work
+
+From this folder, with `mslab` installed (the package your course hands out, installed with
+`pip install`; the public tests compare your results with the library):
+
+```
+pytest 03_heun_midpoint          # one exercise
+pytest .                         # all of them
+```
+
+## How you are graded
+
+Your grade comes from these public tests and from hidden tests on other inputs (some drawn
+at random when you are graded), with the points shown by `@pytest.mark.points(n)`. Only the
+one file with your functions is graded, as a plain file; while it is graded your code cannot
+import `mslab` (write the methods yourself, with numpy), has no network, and each test has a
+time limit (10 s by default) and a memory limit. Printing is allowed but ignored.
+
+## Submit
+
+Hand in this folder as it is (`<your name>/NN_topic/<file>.py`), as plain files: no links.
+"""
 
 
 def strip_solutions(text: str, filename: str = "<source>") -> str:
@@ -48,6 +81,12 @@ def strip_solutions(text: str, filename: str = "<source>") -> str:
     return result
 
 
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 def solution_lines(text: str) -> list[str]:
     """The stripped, non-empty lines inside solution blocks (what a release must not contain)."""
     lines, inside = [], False
@@ -75,12 +114,37 @@ def _released_files(src: Path):
             yield rel_dir / name, path
 
 
-def release(src: str | Path, dest: str | Path, force: bool = False) -> list[Path]:
+def marker_warnings(rel: Path, text: str) -> list[str]:
+    """Lines that look like solution markers but that the release does not understand.
+
+    In a ``.py`` file a marker must be exactly ``# BEGIN SOLUTION`` / ``# END SOLUTION``
+    (after indentation); anything else (``### BEGIN SOLUTION``, ``#BEGIN SOLUTION``,
+    ``# BEGIN HIDDEN TESTS``) would be released as it is, with the solution under it. In any
+    other file every marker is copied as it is.
+    """
+    out = []
+    for number, line in enumerate(text.splitlines(), start=1):
+        if not MARKER_LIKE.search(line):
+            continue
+        marker = line.strip()
+        if rel.suffix != ".py":
+            out.append(f"{rel}:{number}: solution marker in a file that is not .py (copied as it is)")
+        elif not (marker.startswith(BEGIN) or marker.startswith(END)):
+            out.append(f"{rel}:{number}: marker not understood (released as it is): {marker[:60]!r}")
+    return out
+
+
+def release(src: str | Path, dest: str | Path, force: bool = False,
+            warnings: list[str] | None = None) -> list[Path]:
     """Write the student version of ``src`` into ``dest``; returns the files written.
 
-    The release is built in a temporary sibling folder and renamed into place, so a
-    failure (say, unbalanced markers) leaves no half release behind.
+    The top ``README.md`` of the release is the student README (how to run the public tests
+    on their folder and submit), not the instructor's. Lines that look like solution markers
+    the release does not understand are appended to ``warnings``. The release is built in a
+    temporary sibling folder and renamed into place, so a failure (say, unbalanced markers)
+    leaves no half release behind; its permissions follow the umask.
     """
+    warnings = [] if warnings is None else warnings
     src, dest = Path(src).resolve(), Path(dest).resolve()
     if not src.is_dir():
         raise ValueError(f"{src}: no such folder")
@@ -97,12 +161,21 @@ def release(src: str | Path, dest: str | Path, force: bool = False) -> list[Path
         for rel, path in _released_files(src):
             target = tmp / rel
             target.parent.mkdir(parents=True, exist_ok=True)
-            if path.suffix == ".py":
+            if rel == Path("README.md"):
+                target.write_text(STUDENT_README)
+            elif path.suffix == ".py":
                 text = path.read_text()
+                warnings.extend(marker_warnings(rel, text))
                 target.write_text(strip_solutions(text, str(rel)) if BEGIN in text else text)
             else:
-                shutil.copyfile(path, target)
+                data = path.read_bytes()
+                warnings.extend(marker_warnings(rel, data.decode("utf-8", errors="replace")))
+                target.write_bytes(data)
             written.append(dest / rel)
+        if not (tmp / "README.md").exists():
+            (tmp / "README.md").write_text(STUDENT_README)
+            written.append(dest / "README.md")
+        os.chmod(tmp, 0o777 & ~_umask())
         if dest.exists():
             shutil.rmtree(dest)
         os.replace(tmp, dest)

@@ -15,14 +15,17 @@ import resource
 import selectors
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
+from mslab.grading import isolation
 from mslab.grading.wire import WireError, dumps, loads
 
-SANDBOX = Path(__file__).with_name("sandbox.py")
-PR_SET_DUMPABLE, PR_CAPBSET_DROP, PR_SET_NO_NEW_PRIVS = 4, 24, 38
+PR_SET_PDEATHSIG, PR_SET_DUMPABLE, PR_CAPBSET_DROP, PR_SET_NO_NEW_PRIVS = 1, 4, 24, 38
+#: processes the student's uid may have at once (namespace modes as root)
+MAX_PROCESSES = 64
+#: the sandbox's own "type" for an answer it cannot send (no student class has this name)
+WIRE_FAILURE = "<wire>"
 #: largest single reply accepted from the sandbox (bytes)
 MAX_REPLY = 32 * 1024 * 1024
 
@@ -66,9 +69,17 @@ def set_not_dumpable() -> None:
         pass
 
 
-def _limits(memory_mb: int, cpu_s: int, file_mb: int):
+def _limits(memory_mb: int, cpu_s: int, file_mb: int, mode: str = "rlimits"):
     def apply():  # runs in the child between fork and exec
-        drop_privileges()
+        if mode == "rlimits":
+            drop_privileges()
+        else:  # bwrap / the jail need their privileges to build the namespaces; they drop them
+            try:
+                ctypes.CDLL(None).prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+            except (OSError, AttributeError):
+                pass
+            if os.geteuid() == 0:  # counts the fresh uid's processes only
+                resource.setrlimit(resource.RLIMIT_NPROC, (MAX_PROCESSES, MAX_PROCESSES))
         mem = memory_mb * 1024 * 1024
         resource.setrlimit(resource.RLIMIT_AS, (mem, mem))
         resource.setrlimit(resource.RLIMIT_CPU, (cpu_s, cpu_s + 1))
@@ -78,14 +89,34 @@ def _limits(memory_mb: int, cpu_s: int, file_mb: int):
     return apply
 
 
+_PLAN: isolation.Plan | None = None
+
+
+def _plan() -> isolation.Plan:
+    global _PLAN
+    if _PLAN is None:
+        _PLAN = isolation.plan()
+    return _PLAN
+
+
 class Sandbox:
-    """One sandbox process running the student's module file ``module_file`` in ``workdir``."""
+    """One sandbox process running the student's module file ``module_file`` in ``workdir``.
+
+    ``mode`` is the isolation (:mod:`mslab.grading.isolation`). In the namespace modes the
+    student's file reaches the sandbox through an anonymous memory file and ``workdir`` is
+    not used: the sandbox sees its own ``/work`` only.
+    """
 
     def __init__(self, module_file: Path, workdir: Path, memory_mb: int = 1024, cpu_s: int = 60,
-                 file_mb: int = 1, import_timeout: float = 30.0):
+                 file_mb: int = 1, import_timeout: float = 30.0, mode: str = "rlimits"):
         self.module_file = Path(module_file)
+        self.mode = mode
         self.import_timeout = float(import_timeout)
         self.workdir = Path(workdir)
+        self._source_fd: int | None = None
+        if mode != "rlimits":
+            self._source_fd = os.memfd_create("student", os.MFD_CLOEXEC)
+            os.write(self._source_fd, self.module_file.read_bytes())
         self.memory_mb, self.cpu_s, self.file_mb = memory_mb, cpu_s, file_mb
         self.proc: subprocess.Popen | None = None
         self.broken: str | None = None  # import failed: every later call fails the same way
@@ -97,7 +128,17 @@ class Sandbox:
         env.update(OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1",
                    PYTHONDONTWRITEBYTECODE="1", PYTHONHASHSEED="0", HOME=str(self.workdir),
                    TMPDIR=str(self.workdir), MPLBACKEND="Agg")
+        if self.mode != "rlimits":
+            env.update(HOME="/work", TMPDIR="/tmp", PATH="/usr/bin:/bin")
         return env
+
+    def _command(self) -> tuple[list[str], tuple[int, ...], Path | None]:
+        if self.mode == "rlimits":
+            return isolation.rlimit_command(self.module_file), (), self.workdir
+        os.lseek(self._source_fd, 0, os.SEEK_SET)
+        build = isolation.bwrap_command if self.mode == "bwrap" else isolation.jail_command
+        argv = build(_plan(), self._source_fd, isolation.new_uid(), module=self.module_file.name)
+        return argv, (self._source_fd,), None
 
     def ensure_started(self) -> None:
         """Start the sandbox if it is not running (importing the module has its own time limit)."""
@@ -107,11 +148,11 @@ class Sandbox:
             self.start(time.monotonic() + self.import_timeout)
 
     def start(self, deadline: float) -> None:
+        argv, fds, cwd = self._command()
         self.proc = subprocess.Popen(
-            [sys.executable, "-E", "-s", str(SANDBOX), str(self.module_file)],
-            cwd=self.workdir, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-            env=self._env(), start_new_session=True,
-            preexec_fn=_limits(self.memory_mb, self.cpu_s, self.file_mb))
+            argv, cwd=cwd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+            env=self._env(), start_new_session=True, pass_fds=fds,
+            preexec_fn=_limits(self.memory_mb, self.cpu_s, self.file_mb, self.mode))
         self._buf = b""
         hello = self._read(deadline, starting=True)
         if not hello.get("ready"):
@@ -193,6 +234,13 @@ class Sandbox:
             pass
         self.proc = None
 
+    def close(self) -> None:
+        """Kill the process and forget the student's file."""
+        self.kill()
+        if self._source_fd is not None:
+            os.close(self._source_fd)
+            self._source_fd = None
+
 
 def _exit_reason(code: int | None) -> str:
     if code is None:
@@ -205,6 +253,8 @@ def _exit_reason(code: int | None) -> str:
         hint = {"SIGXCPU": " (CPU time limit)", "SIGKILL": " (killed)", "SIGXFSZ": " (file size limit)",
                 "SIGSEGV": " (crashed, maybe out of memory)"}.get(name, "")
         return f"was stopped by {name}{hint}"
+    if 128 < code < 160:  # bwrap reports a signal as 128 + number
+        return _exit_reason(128 - code)
     return f"exited with code {code}"
 
 
@@ -232,7 +282,9 @@ class Student:
             raise AttributeError(name)
         reply = self._sandbox.request({"op": "getattr", "name": name}, self._deadline, self._timeout)
         if not reply.get("ok"):
-            raise StudentError(_missing(name, reply), tuple(reply.get("mro", ())))
+            if reply.get("type") == "AttributeError":  # the grader's words, not the student's error
+                raise StudentError(_missing(name, reply))
+            raise StudentError(_missing(name, reply), _mro(reply))
         if not reply.get("callable"):
             return reply.get("value")
 
@@ -240,11 +292,17 @@ class Student:
             r = self._sandbox.request({"op": "call", "name": name, "args": list(args), "kwargs": kwargs},
                                       self._deadline, self._timeout)
             if not r.get("ok"):
-                raise StudentError(f"{name}(): {r.get('error', 'failed')}", tuple(r.get("mro", ())))
+                raise StudentError(f"{name}(): {r.get('error', 'failed')}", _mro(r))
             return r.get("value")
 
         call.__name__ = name
         return call
+
+
+def _mro(reply: dict) -> tuple[str, ...]:
+    """The student's exception classes; none when the sandbox itself reports (data it cannot send)."""
+    mro = tuple(str(c) for c in reply.get("mro", ()) if isinstance(c, str))
+    return () if mro[:1] == (WIRE_FAILURE,) else mro
 
 
 def _missing(name: str, reply: dict) -> str:

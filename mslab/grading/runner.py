@@ -32,17 +32,28 @@ import pytest
 from mslab.grading.remote import Sandbox, Student, StudentError, set_not_dumpable
 
 
-def short_reason(excinfo) -> str:
-    """One line for the grade report."""
+def short_reason(excinfo) -> tuple[str, str, str]:
+    """One line for the grade report, the kind of failure, and the student's exception type.
+
+    Kinds: ``raised`` (the student's code raised ``etype``), ``process`` (the student's
+    process timed out, crashed, could not be imported or answered no data: the line is the
+    runner's own), ``wrong`` (an assertion of the test failed), ``error`` (the test itself
+    failed otherwise). The grader shows only the kind for hidden tests.
+    """
     err = excinfo.value
+    etype = ""
     if isinstance(err, StudentError):
         text = str(err)
+        kind = "raised" if err.mro else "process"
+        etype = err.mro[0] if err.mro else ""
     elif isinstance(err, AssertionError):
         text = str(err).strip().splitlines()[0] if str(err).strip() else "assertion failed"
+        kind = "wrong"
     else:
         first = str(err).splitlines()[0] if str(err) else ""
         text = f"{type(err).__name__}: {first}" if first else type(err).__name__
-    return text[:200]
+        kind = "error"
+    return text[:200], kind, etype[:60]
 
 
 class GradingPlugin:
@@ -80,7 +91,10 @@ class GradingPlugin:
         entry = self.results.setdefault(key, {"passed": None, "reason": "not run"})
         if rep.failed:
             entry["passed"] = False
-            entry["reason"] = short_reason(call.excinfo) if call.excinfo else "failed"
+            if call.excinfo:
+                entry["reason"], entry["kind"], entry["etype"] = short_reason(call.excinfo)
+            else:
+                entry["reason"], entry["kind"] = "failed", "error"
         elif rep.skipped:
             entry["passed"] = False
             entry["reason"] = "skipped"
@@ -92,7 +106,7 @@ class GradingPlugin:
 
 def run_exercise(job: dict, ex: dict) -> dict:
     """Run the tests of one exercise on one student's file; the outcome as a dict."""
-    root = Path(tempfile.mkdtemp(prefix="mslab-runner-"))
+    root = Path(tempfile.mkdtemp(prefix="item-", dir=job.get("tmp")))
     tests_dir, work_dir = root / "tests", root / "work"
     tests_dir.mkdir()
     work_dir.mkdir()
@@ -111,7 +125,8 @@ def run_exercise(job: dict, ex: dict) -> dict:
             module_file.write_text(ex["student_source"])
             sandbox = Sandbox(module_file, work_dir, memory_mb=int(job.get("memory_mb", 1024)),
                               cpu_s=int(ex.get("cpu_s", 120)),
-                              import_timeout=float(job.get("import_timeout", 30.0)))
+                              import_timeout=float(job.get("import_timeout", 30.0)),
+                              mode=job.get("isolation", "rlimits"))
         plugin = GradingPlugin(sandbox, float(job.get("timeout", 10.0)), missing)
 
         def unchanged() -> bool:
@@ -128,7 +143,7 @@ def run_exercise(job: dict, ex: dict) -> dict:
             pytest.main(args, plugins=[plugin])
         finally:
             if sandbox is not None:
-                sandbox.kill()
+                sandbox.close()
             # importlib mode caches test modules by name: forget them for the next exercise
             for key, module in list(sys.modules.items()):
                 if str(getattr(module, "__file__", None) or "").startswith(str(tests_dir)):

@@ -32,9 +32,11 @@ def _describe(err: BaseException, filename: str) -> str:
         if frame.filename == filename:
             where = f" ({os.path.basename(filename)}, line {frame.lineno})"
             break
-    if isinstance(err, SyntaxError) and err.lineno:
-        where = f" ({os.path.basename(filename)}, line {err.lineno})"
     text = str(err).splitlines()[0][:300] if str(err) else ""
+    if isinstance(err, SyntaxError):  # str() already ends with "(file, line N)": say it once
+        text = str(err.msg or "").splitlines()[0][:300] if err.msg else ""
+        if err.lineno:
+            where = f" ({os.path.basename(filename)}, line {err.lineno})"
     return f"{type(err).__name__}: {text}{where}" if text else f"{type(err).__name__}{where}"
 
 
@@ -58,7 +60,7 @@ def main() -> None:
         try:
             line = dumps(msg)
         except WireError as err:
-            line = dumps({"ok": False, "type": "WireError", "mro": ["WireError"],
+            line = dumps({"ok": False, "type": "WireError", "mro": ["<wire>"],
                           "error": f"the function returned data the grader cannot read: {err}"})
         chan_out.write(line)
         chan_out.flush()

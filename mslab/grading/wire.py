@@ -98,8 +98,26 @@ def dumps(obj) -> bytes:
     return json.dumps(encode(obj), separators=(",", ":")).encode() + b"\n"
 
 
+#: most containers (lists, tuples, dicts) one message may hold: bounds the decoder's memory
+MAX_CONTAINERS = 100_000
+
+
 def loads(line: bytes, make_problem=None):
-    """Decode one message line; WireError if it is not a well-formed message."""
+    """Decode one message line; WireError if it is not a well-formed message.
+
+    Bounded before parsing: a line with more than :data:`MAX_CONTAINERS` brackets or nested
+    deeper than :data:`MAX_DEPTH` is refused without building it (ten million empty lists
+    would take gigabytes).
+    """
+    if isinstance(line, str):
+        line = line.encode()
+    if line.count(b"[") + line.count(b"{") > MAX_CONTAINERS:
+        raise WireError(f"more than {MAX_CONTAINERS} lists or dicts")
+    depth = 0
+    for byte in line.translate(None, delete=bytes(set(range(256)) - set(b"[]{}"))):
+        depth += 1 if byte in b"[{" else -1
+        if depth > 3 * MAX_DEPTH + 4:
+            raise WireError("nested too deeply")
     try:
         raw = json.loads(line)
     except (ValueError, UnicodeDecodeError) as err:

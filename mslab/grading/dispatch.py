@@ -1,0 +1,149 @@
+"""Runner processes: start one, hand it a job, stream back each item's outcome, clean up.
+
+The runner (:mod:`mslab.grading.runner`) is trusted but its students are not, so the
+grader treats it as unreliable: it bounds its memory and output, kills it at a wall-clock
+limit, and owns its temporary folder (removed however the runner ended; folders of a
+killed grader are removed by the next one).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import json
+import os
+import resource
+import selectors
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+from mslab.grading.remote import PR_SET_PDEATHSIG
+
+#: seconds a runner may need beyond its tests' time limits (interpreter, pytest, imports)
+RUNNER_SLACK = 60.0
+#: the folder holding the grader's own ``mslab`` (the runner imports the same code)
+PACKAGE_ROOT = str(Path(__file__).resolve().parents[2])
+RUNNER_BOOT = "import sys; sys.path.insert(0, {root!r}); from mslab.grading.runner import main; main()"
+#: bytes of runner output the grader reads at most
+MAX_RUNNER_OUTPUT = 16 * 1024 * 1024
+#: address-space limit of a test runner (MB): it decodes what the sandbox answers
+RUNNER_MEMORY_MB = 4096
+#: temporary folders of the grader: ``mslab-grade-<pid>-...`` (stale ones are removed)
+TMP_PREFIX = "mslab-grade-"
+#: set when grading is interrupted: every runner is stopped and its folder removed
+STOP = threading.Event()
+
+
+def _runner_limits() -> None:
+    """In the runner, between fork and exec: bounded memory, and death with the grader."""
+    mem = RUNNER_MEMORY_MB * 1024 * 1024
+    resource.setrlimit(resource.RLIMIT_AS, (mem, mem))
+    resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
+    try:
+        ctypes.CDLL(None).prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    except (OSError, AttributeError):
+        pass
+
+
+def clean_stale_folders() -> None:
+    """Remove the temporary folders of graders that were killed (their pid is gone)."""
+    for folder in Path(tempfile.gettempdir()).glob(f"{TMP_PREFIX}*"):
+        try:
+            pid = int(folder.name[len(TMP_PREFIX):].split("-")[0])
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            shutil.rmtree(folder, ignore_errors=True)
+        except (ValueError, PermissionError, OSError):
+            continue
+
+
+def run_runner(job: dict, wall_limit: float, on_item) -> tuple[set, str]:
+    """Start one runner, feed it the job, hand each finished item to ``on_item(key, outcome)``.
+
+    Returns the keys finished and why not all. The runner's temporary folder is the
+    grader's: removed here however the runner ended.
+    """
+    tmp = tempfile.mkdtemp(prefix=f"{TMP_PREFIX}{os.getpid()}-")
+    job = dict(job, tmp=tmp)
+    env = dict(os.environ, PYTEST_DISABLE_PLUGIN_AUTOLOAD="1", PYTHONDONTWRITEBYTECODE="1")
+    env.pop("PYTEST_ADDOPTS", None)
+    keys = {it["key"] for it in job["items"]}
+    done: set = set()
+    why = ""
+    proc = subprocess.Popen([sys.executable, "-E", "-s", "-P", "-c", RUNNER_BOOT.format(root=PACKAGE_ROOT)],
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                            start_new_session=True, env=env, cwd=os.path.abspath(os.sep),
+                            preexec_fn=_runner_limits)
+    sel = selectors.DefaultSelector()
+    fd = proc.stdout.fileno()
+    sel.register(fd, selectors.EVENT_READ)
+    prefix = job["nonce"].encode() + b" "
+    try:
+        buf, total, ready = b"", 0, False
+        deadline = time.monotonic() + RUNNER_SLACK
+        while True:
+            if STOP.is_set():
+                why = "grading was interrupted"
+                break
+            left = deadline - time.monotonic()
+            if left <= 0:
+                why = (f"grading took longer than {wall_limit:.0f} s" if ready
+                       else "the test runner did not start")
+                break
+            if not sel.select(timeout=min(left, 0.5)):
+                continue
+            chunk = os.read(fd, 1 << 16)
+            if not chunk:
+                break
+            total += len(chunk)
+            if total > MAX_RUNNER_OUTPUT:
+                why = "the test runner wrote too much"
+                break
+            buf += chunk
+            while b"\n" in buf:
+                line, buf = buf.split(b"\n", 1)
+                if not ready:
+                    if line != b"ready":
+                        return done, "the test runner did not start"
+                    ready = True  # non-dumpable now: the nonce may go out
+                    deadline = time.monotonic() + wall_limit
+                    proc.stdin.write(json.dumps(job).encode())
+                    proc.stdin.close()
+                    continue
+                if not line.startswith(prefix):
+                    continue
+                try:
+                    msg = json.loads(line[len(prefix):])
+                except ValueError:
+                    continue
+                key = str(msg.get("key")) if isinstance(msg, dict) else ""
+                if key in keys and key not in done and isinstance(msg.get("outcome"), dict):
+                    done.add(key)
+                    on_item(key, msg["outcome"])
+    except (BrokenPipeError, OSError):
+        why = why or "the test runner stopped"
+    finally:
+        sel.close()
+        _killpg(proc)
+        shutil.rmtree(tmp, ignore_errors=True)
+    if len(done) < len(keys) and not why:
+        why = f"the test runner stopped (exit code {proc.returncode})"
+    return done, why
+
+
+def _killpg(proc: subprocess.Popen) -> None:
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):
+        pass
+    for stream in (proc.stdin, proc.stdout):
+        try:
+            stream.close()
+        except (OSError, ValueError):
+            pass
+    proc.wait()

@@ -1,0 +1,235 @@
+"""How the sandbox is isolated from the grader: the strongest the machine offers.
+
+Three modes, tried in this order:
+
+``bwrap``
+    bubblewrap: new PID, mount, network, IPC and UTS namespaces (and a user namespace);
+    as root the student runs as a fresh unprivileged uid (``setpriv``), otherwise as the
+    grader's uid mapped into a user namespace.
+``namespaces``
+    the same built from Python (:mod:`mslab.grading.jail`, ``unshare`` + ``pivot_root``).
+``rlimits``
+    no namespaces: resource limits only, in the grader's file system (a warning says so).
+
+In both namespace modes the student's process sees a read-only view of the interpreter,
+the standard library and numpy only (no ``mslab``, no site-packages, no source tree, no
+other submission), a private ``/tmp`` and ``/work`` (small tmpfs holding its file), a
+``/proc`` of its own PID namespace and no network; everything it starts dies with it.
+"""
+
+from __future__ import annotations
+
+import glob
+import json
+import os
+import secrets
+import shutil
+import subprocess
+import sys
+import sysconfig
+from dataclasses import dataclass, field
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+#: the trusted files the sandbox runs (imported by file path, without mslab)
+SANDBOX_FILES = ("sandbox.py", "wire.py", "problems.py")
+JAIL = HERE / "jail.py"
+MODES = ("bwrap", "namespaces", "rlimits")
+#: size of the student's /work and /tmp (bytes)
+TMPFS_SIZE = 64 * 1024 * 1024
+#: the student's uid when the grader is root: a fresh one per sandbox, owning no file
+UID_BASE, UID_SPAN = 2_000_000, 1_000_000
+
+DESCRIPTION = {
+    "bwrap": "isolated by bubblewrap (user, PID, mount, network, IPC namespaces)",
+    "namespaces": "isolated by Linux namespaces (user, PID, mount, network, IPC; no bwrap)",
+    "rlimits": "NOT isolated: resource limits only, student code runs as the grader's user "
+               "in the grader's file system",
+}
+
+
+@dataclass
+class Mount:
+    """One entry of the sandbox's file system: ``ro`` bind, ``tmpfs``, ``symlink`` or ``file``."""
+
+    kind: str
+    dst: str
+    src: str = ""
+    size: int = 0
+    mode: int = 0o755
+
+
+@dataclass
+class Plan:
+    """The sandbox's file system and the command it runs (paths inside the sandbox)."""
+
+    mounts: list[Mount] = field(default_factory=list)
+    python: str = ""
+
+
+def _python_files() -> tuple[str, list[str]]:
+    """The real interpreter and the folders it needs (its prefix's lib folders)."""
+    exe = os.path.realpath(sys.executable)
+    libdir = sysconfig.get_config_var("LIBDIR") or ""
+    stdlib = sysconfig.get_paths(vars={"base": sys.base_prefix, "platbase": sys.base_prefix})["stdlib"]
+    folders = [os.path.realpath(p) for p in (libdir, stdlib) if p and os.path.isdir(p)]
+    return exe, folders
+
+
+def _site_folders(roots: list[str]) -> list[str]:
+    """site-/dist-packages folders under the bound trees (hidden behind empty tmpfs)."""
+    found = []
+    for root in roots:
+        for pattern in ("site-packages", "dist-packages", "python3*/site-packages", "python3*/dist-packages",
+                        "lib/python3*/site-packages", "lib/python3*/dist-packages", "local/lib/python3*"):
+            found.extend(p for p in glob.glob(os.path.join(root, pattern)) if os.path.isdir(p))
+    return sorted(set(found))
+
+
+def _outermost(paths: list[str]) -> list[str]:
+    """``paths`` without those inside another one of them."""
+    out: list[str] = []
+    for p in sorted(set(paths), key=len):
+        if not any(p == q or p.startswith(q.rstrip("/") + "/") for q in out):
+            out.append(p)
+    return sorted(out)
+
+
+def plan() -> Plan:
+    """The mounts of a sandbox (the same for every student; computed by the runner)."""
+    import numpy
+
+    exe, folders = _python_files()
+    mounts: list[Mount] = []
+    dirs: set[str] = set()
+
+    def parents(path: str) -> None:
+        parent = os.path.dirname(path)
+        while parent not in ("/", ""):
+            dirs.add(parent)
+            parent = os.path.dirname(parent)
+
+    for top in ("/usr", "/lib", "/lib64", "/lib32", "/bin", "/sbin"):
+        if os.path.islink(top):
+            mounts.append(Mount("symlink", top, os.readlink(top)))
+        elif os.path.isdir(top):
+            mounts.append(Mount("ro", top, top))
+    if os.path.isfile("/etc/ld.so.cache"):
+        mounts.append(Mount("ro", "/etc/ld.so.cache", "/etc/ld.so.cache"))
+        parents("/etc/ld.so.cache")
+    system = ("/usr/", "/lib", "/bin", "/sbin")
+    if not exe.startswith(system):
+        mounts.append(Mount("ro", exe, exe))
+        parents(exe)
+    for folder in _outermost(folders):
+        if not folder.startswith(system):
+            mounts.append(Mount("ro", folder, folder))
+            parents(folder)
+    masked = _site_folders([f for f in folders] + ["/usr/lib", "/usr/local/lib", "/usr"])
+    mounts += [Mount("tmpfs", p, size=4096, mode=0o555) for p in _outermost(masked)]
+    numpy_dir = os.path.dirname(os.path.realpath(numpy.__file__))
+    mounts.append(Mount("ro", "/grader/numpy", numpy_dir))
+    libs = numpy_dir + ".libs"
+    if os.path.isdir(libs):
+        mounts.append(Mount("ro", "/grader/numpy.libs", libs))
+    for name in SANDBOX_FILES:
+        mounts.append(Mount("ro", f"/grader/{name}", str(HERE / name)))
+    dirs.add("/grader")
+    mounts.append(Mount("tmpfs", "/work", size=TMPFS_SIZE, mode=0o1777))
+    mounts.append(Mount("tmpfs", "/tmp", size=TMPFS_SIZE, mode=0o1777))
+    ordered = [Mount("dir", d, mode=0o755) for d in sorted(dirs, key=len)]
+    return Plan(ordered + mounts, exe)
+
+
+def sandbox_argv(python: str, module: str = "module.py") -> list[str]:
+    """The sandbox command inside the namespaces (``-S``: no site, numpy from /grader)."""
+    return [python, "-E", "-s", "-S", "/grader/sandbox.py", f"/work/{module}"]
+
+
+def new_uid() -> int | None:
+    """A fresh unprivileged uid for one sandbox when the grader is root, else None."""
+    return UID_BASE + secrets.randbelow(UID_SPAN) if os.geteuid() == 0 else None
+
+
+def bwrap_command(p: Plan, source_fd: int, uid: int | None, argv: list[str] | None = None,
+                  module: str = "module.py") -> list[str]:
+    """The bubblewrap command line running the sandbox (the student's file from ``source_fd``)."""
+    args = [shutil.which("bwrap") or "bwrap", "--unshare-pid", "--unshare-net", "--unshare-ipc",
+            "--unshare-uts", "--unshare-cgroup-try", "--die-with-parent", "--new-session"]
+    if uid is None:
+        args.append("--unshare-user")
+    else:  # root: keep only what setpriv needs to become the fresh uid
+        args += ["--cap-add", "CAP_SETUID", "--cap-add", "CAP_SETGID"]
+    for m in p.mounts:
+        if m.kind == "dir":
+            args += ["--perms", f"{m.mode:04o}", "--dir", m.dst]
+        elif m.kind == "ro":
+            args += ["--ro-bind", m.src, m.dst]
+        elif m.kind == "symlink":
+            args += ["--symlink", m.src, m.dst]
+        elif m.kind == "tmpfs":
+            args += ["--perms", f"{m.mode:04o}", "--size", str(m.size), "--tmpfs", m.dst]
+    args += ["--perms", "0444", "--file", str(source_fd), f"/work/{module}",
+             "--proc", "/proc", "--dev", "/dev", "--remount-ro", "/", "--chdir", "/work"]
+    if uid is not None:
+        args += ["/usr/bin/setpriv", f"--reuid={uid}", f"--regid={uid}", "--clear-groups",
+                 "--inh-caps=-all", "--bounding-set=-all", "--no-new-privs"]
+        if os.path.exists("/usr/bin/unshare"):
+            args += ["/usr/bin/unshare", "--user"]
+    return args + (argv or sandbox_argv(p.python, module))
+
+
+def jail_command(p: Plan, source_fd: int, uid: int | None, argv: list[str] | None = None,
+                 module: str = "module.py") -> list[str]:
+    """The Python namespace launcher (:mod:`mslab.grading.jail`) running the sandbox."""
+    config = {"mounts": [m.__dict__ for m in p.mounts], "uid": uid, "source_fd": source_fd,
+              "module": module, "argv": argv or sandbox_argv(p.python, module)}
+    return [os.path.realpath(sys.executable), "-I", "-S", str(JAIL), json.dumps(config)]
+
+
+def rlimit_command(module_file: Path) -> list[str]:
+    """The old sandbox: the grader's interpreter on the student's file, limits only."""
+    return [sys.executable, "-E", "-s", str(HERE / "sandbox.py"), str(module_file)]
+
+
+def _probe(mode: str) -> bool:
+    """Can this machine start a sandbox in ``mode``? (runs ``import numpy`` inside)."""
+    if mode == "bwrap" and not shutil.which("bwrap"):
+        return False
+    if mode == "bwrap" and os.geteuid() == 0 and not os.path.exists("/usr/bin/setpriv"):
+        return False
+    p = plan()
+    p.mounts = [m for m in p.mounts if not m.dst.startswith("/grader/") or "numpy" in m.dst]
+    r, w = os.pipe()
+    os.write(w, b"")
+    os.close(w)
+    build = bwrap_command if mode == "bwrap" else jail_command
+    argv = build(p, r, new_uid(), [p.python, "-E", "-s", "-S", "-c",
+                                   "import sys; sys.path.insert(0, '/grader'); import numpy"])
+    try:
+        proc = subprocess.run(argv, pass_fds=(r,), stdin=subprocess.DEVNULL, capture_output=True, timeout=60)
+        return proc.returncode == 0
+    except (OSError, subprocess.TimeoutExpired):
+        return False
+    finally:
+        os.close(r)
+
+
+def detect(mode: str = "auto") -> str:
+    """The isolation to use: ``mode`` if given (ValueError if unavailable), else the strongest."""
+    if mode not in ("auto", *MODES):
+        raise ValueError(f"unknown isolation {mode!r} (choose from auto, {', '.join(MODES)})")
+    if mode == "rlimits":
+        return mode
+    if not sys.platform.startswith("linux"):
+        if mode != "auto":
+            raise ValueError(f"isolation {mode!r} needs Linux")
+        return "rlimits"
+    if mode != "auto":
+        if not _probe(mode):
+            raise ValueError(f"isolation {mode!r} is not available on this machine")
+        return mode
+    for candidate in ("bwrap", "namespaces"):
+        if _probe(candidate):
+            return candidate
+    return "rlimits"

@@ -1,0 +1,125 @@
+"""What the grader writes: score sheets, the CSV gradebook and the journal of a class.
+
+Every name that comes from a student's folder is shown sanitised: control characters
+escaped in reports (a newline cannot forge a summary line) and CSV cells that a
+spreadsheet would run as a formula (``= + - @``, tab, CR) prefixed with ``'``.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+import os
+import tempfile
+from pathlib import Path
+
+
+def printable(text: str, limit: int = 120) -> str:
+    """``text`` with control and non-printable characters as ``\\xNN`` escapes, shortened."""
+    out = "".join(c if c.isprintable() else f"\\x{ord(c):02x}" if ord(c) < 256 else f"\\u{ord(c):04x}"
+                  for c in str(text))
+    return out if len(out) <= limit else out[: limit - 3] + "..."
+
+
+def csv_cell(value) -> str:
+    """One CSV cell that no spreadsheet evaluates."""
+    text = printable(str(value), limit=200)
+    return "'" + text if text[:1] in ("=", "+", "-", "@", "\t", "\r") else text
+
+
+def format_report(result) -> str:
+    """The human-readable score sheet of one submission (a :class:`SubmissionResult`)."""
+    lines = [f"{printable(result.student)}  ({printable(result.submission, 200)})"]
+    if result.isolation:
+        lines.append(f"  isolation: {result.isolation}")
+    for ex in result.exercises:
+        lines.append(f"  {ex.name}: {ex.total:g}/{ex.max_points:g}")
+        for t in ex.tests:
+            mark = "pass" if t.passed else "FAIL"
+            tail = "" if t.passed else f"  {printable(t.reason, 200)}"
+            lines.append(f"    {t.points:>4g}/{t.max_points:<4g} {mark}  {t.test}{tail}")
+    lines.append(f"  total: {result.total:g}/{result.max_points:g}")
+    return "\n".join(lines)
+
+
+def gradebook_rows(results) -> list[list[str]]:
+    """CSV rows: header, then one row per student (total, max, one column per exercise)."""
+    names = [e.name for e in results[0].exercises] if results else []
+    rows: list[list[str]] = [["student", "total", "max", *names]]
+    for r in results:
+        rows.append([csv_cell(r.student), f"{r.total:g}", f"{r.max_points:g}",
+                     *(f"{e.total:g}" for e in r.exercises)])
+    return rows
+
+
+def umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def write_csv(path: str | Path, rows: list[list[str]]) -> Path:
+    """Write the gradebook atomically (temporary file, then rename) with the umask's permissions."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}-", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", newline="") as fh:
+            csv.writer(fh).writerows(rows)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.chmod(tmp, 0o666 & ~umask())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path
+
+
+class Journal:
+    """Outcomes of graded items, one JSON line each, appended as they arrive.
+
+    An item is one exercise of one submission, keyed by the submission's path, the
+    exercise and a hash of the student's file; ``fingerprint`` (the instructor's tests and
+    the limits) must match for an outcome to be reused by ``--resume``.
+    """
+
+    def __init__(self, path: str | Path, fingerprint: str, resume: bool):
+        self.path = Path(path)
+        self.fingerprint = fingerprint
+        self.done: dict[str, dict] = {}
+        if resume and self.path.is_file():
+            for line in self.path.read_text(errors="replace").splitlines():
+                try:
+                    entry = json.loads(line)
+                except ValueError:
+                    continue  # the line in flight when the grader was killed
+                if isinstance(entry, dict) and entry.get("fingerprint") == fingerprint:
+                    self.done[str(entry.get("key"))] = entry.get("outcome")
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._fh = open(self.path, "a" if resume else "w")
+
+    def add(self, key: str, outcome) -> None:
+        self._fh.write(json.dumps({"fingerprint": self.fingerprint, "key": key, "outcome": outcome}) + "\n")
+        self._fh.flush()
+        os.fsync(self._fh.fileno())
+
+    def close(self, finished: bool) -> None:
+        self._fh.close()
+        if finished:
+            self.path.unlink(missing_ok=True)
+
+
+def item_key(submission: Path, exercise: str, source: str | None) -> str:
+    digest = hashlib.sha256((source or "").encode()).hexdigest()[:20]
+    return f"{os.path.abspath(submission)}\0{exercise}\0{digest}"
+
+
+def fingerprint(exercises, timeout: float, memory_mb: int) -> str:
+    h = hashlib.sha256(f"{timeout}:{memory_mb}".encode())
+    for ex in exercises:
+        for name, text in sorted(ex.tests.items()):
+            h.update(f"{ex.name}/{name}\0{text}\0".encode())
+    return h.hexdigest()[:32]
