@@ -14,9 +14,10 @@ from mslab.integrators import (
     methods,
 )
 from mslab.scenes import Scene, SceneBuilder, Settings, load_scene, scene_names
-from mslab.simulate import Energy, SimulationInterrupted, Stats, Trajectory, simulate
+from mslab.simulate import SimulationInterrupted, simulate
 from mslab.state import State
 from mslab.system import System
+from mslab.trajectory import Energy, Stats, Trajectory
 
 __version__ = "0.1.0"
 

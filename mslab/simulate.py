@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import time
 import warnings
-from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -30,85 +29,8 @@ from mslab.effects.gravity import Gravity
 from mslab.errors import ConvergenceError, InstabilityError, StabilityWarning, StepFailure
 from mslab.integrators.base import Integrator, get_method
 from mslab.scenes.builder import Scene
-from mslab.state import State
 from mslab.threads import single_threaded_blas
-
-
-@dataclass
-class Energy:
-    """Energy ledger over the saved times, each an array of shape (n_saved,)."""
-
-    kinetic: np.ndarray
-    potential: np.ndarray
-    dissipated: np.ndarray
-
-    @property
-    def total(self) -> np.ndarray:
-        """``K + U + D``: constant for the exact solution, damped or not."""
-        return self.kinetic + self.potential + self.dissipated
-
-    def energy_scale(self) -> float:
-        """The run's energy scale: the largest kinetic energy in the first quarter of the run.
-
-        Unlike ``|E(0)|`` it does not depend on where potential energy is zero (a chain
-        starting at height 0 has E(0) = 0), and unlike the whole run's maximum a late
-        blow-up does not shrink the relative error. Falls back to ``|E(0)|``, then 1.
-        """
-        k = self.kinetic[: max(1, len(self.kinetic) // 4)]
-        for scale in (float(np.max(k)), abs(float(self.total[0]))):
-            if scale > 0.0 and np.isfinite(scale):
-                return scale
-        return 1.0
-
-    def relative_drift(self) -> np.ndarray:
-        """``(E(t) - E(0)) / energy_scale()`` for the ledger total ``E = K + U + D``."""
-        total = self.total
-        return (total - total[0]) / self.energy_scale()
-
-
-@dataclass
-class Stats:
-    """Work and time of a run, counted by the System during stepping."""
-
-    method: str
-    dt: float
-    steps: int = 0
-    n_force: int = 0
-    n_jac: int = 0
-    n_solve: int = 0
-    n_iter: int = 0
-    wall_time: float = 0.0
-
-    def as_dict(self) -> dict:
-        return dict(self.__dict__)
-
-
-@dataclass
-class Trajectory:
-    """Saved samples of a run.
-
-    Attributes
-    ----------
-    t : ndarray, shape (n_saved,)
-    x, v : ndarray, shape (n_saved, n_particles, dim)
-    energy : Energy
-    stats : Stats
-    complete : bool
-        False for the part of a run kept when it blew up or was interrupted.
-    """
-
-    t: np.ndarray
-    x: np.ndarray
-    v: np.ndarray
-    energy: Energy
-    stats: Stats
-    complete: bool = True
-    scene_name: str = ""
-    extra: dict = field(default_factory=dict)
-
-    @property
-    def final_state(self) -> State:
-        return State(self.x[-1], self.v[-1])
+from mslab.trajectory import Energy, Stats, Trajectory
 
 
 class SimulationInterrupted(KeyboardInterrupt):

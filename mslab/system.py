@@ -8,7 +8,7 @@ accuracy-versus-cost comparisons honest.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 import scipy.sparse as sp
@@ -18,18 +18,38 @@ from mslab.effects.base import Effect
 
 @dataclass
 class Counters:
-    """Work done on a system: force evaluations, Jacobians, linear solves, iterations."""
+    """Work done on a system: the one list of work counters (:class:`~mslab.trajectory.Stats` reuses it).
+
+    Attributes
+    ----------
+    n_force : int
+        Force evaluations (``System.rhs`` / ``System.acceleration``).
+    n_jac : int
+        Jacobian assemblies (``System.jacobians``).
+    n_solve : int
+        Linear solves with a Newton (or other implicit) matrix.
+    n_iter : int
+        Iterations of implicit solvers (Newton, fixed point).
+    n_factor : int
+        Matrix factorisations (a solve may reuse an earlier one).
+    n_lin_iter : int
+        Iterations of iterative linear solvers (conjugate gradients).
+    """
 
     n_force: int = 0
     n_jac: int = 0
     n_solve: int = 0
     n_iter: int = 0
+    n_factor: int = 0
+    n_lin_iter: int = 0
 
     def snapshot(self) -> dict:
-        return asdict(self)
+        """The counters as a dict."""
+        return {f.name: getattr(self, f.name) for f in fields(Counters)}
 
     def since(self, before: dict) -> dict:
-        return {k: v - before[k] for k, v in asdict(self).items()}
+        """The work done since ``before`` (a :meth:`snapshot`)."""
+        return {k: v - before[k] for k, v in self.snapshot().items()}
 
 
 class System:

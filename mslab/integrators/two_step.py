@@ -2,9 +2,10 @@
 
 Both produce the positions of velocity Verlet, the splitting ``drift = [0, 1, 0],
 kick = [1/2, 1/2]`` (their ``splitting`` attribute; :mod:`mslab.derive` takes its order
-from that splitting's coefficients and expands their own step), but carry a different state between steps and so start differently and
-report velocities their own way, as the course writes them (seed eqs. 21-26). Each
-keeps its documented start-up step and second-order velocity estimate.
+from that splitting's coefficients and expands their own step), but carry a different
+state between steps and so start differently and report velocities their own way, as
+the course writes them (seed eqs. 21-26). Each keeps its documented start-up step and
+second-order velocity estimate.
 """
 
 from __future__ import annotations

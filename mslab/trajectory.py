@@ -1,0 +1,89 @@
+"""What a run returns: saved samples, the energy ledger and the counted work."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from mslab.state import State
+from mslab.system import Counters
+
+
+@dataclass
+class Energy:
+    """Energy ledger over the saved times, each an array of shape (n_saved,)."""
+
+    kinetic: np.ndarray
+    potential: np.ndarray
+    dissipated: np.ndarray
+
+    @property
+    def total(self) -> np.ndarray:
+        """``K + U + D``: constant for the exact solution, damped or not."""
+        return self.kinetic + self.potential + self.dissipated
+
+    def energy_scale(self) -> float:
+        """The run's energy scale: the largest kinetic energy in the first quarter of the run.
+
+        Unlike ``|E(0)|`` it does not depend on where potential energy is zero (a chain
+        starting at height 0 has E(0) = 0), and unlike the whole run's maximum a late
+        blow-up does not shrink the relative error. Falls back to ``|E(0)|``, then 1.
+        """
+        k = self.kinetic[: max(1, len(self.kinetic) // 4)]
+        for scale in (float(np.max(k)), abs(float(self.total[0]))):
+            if scale > 0.0 and np.isfinite(scale):
+                return scale
+        return 1.0
+
+    def relative_drift(self) -> np.ndarray:
+        """``(E(t) - E(0)) / energy_scale()`` for the ledger total ``E = K + U + D``."""
+        total = self.total
+        return (total - total[0]) / self.energy_scale()
+
+
+@dataclass
+class Stats(Counters):
+    """Work and time of a run: the System's counters during stepping, steps and wall time.
+
+    The work counters are the fields of :class:`~mslab.system.Counters` (one list for both).
+    """
+
+    method: str = ""
+    dt: float = 0.0
+    steps: int = 0
+    wall_time: float = 0.0
+
+    def as_dict(self) -> dict:
+        """Method, dt, steps, every counter and the wall time, as a plain dict."""
+        counters = {f.name: getattr(self, f.name) for f in fields(Counters)}
+        return {"method": self.method, "dt": self.dt, "steps": self.steps, **counters,
+                "wall_time": self.wall_time}
+
+
+@dataclass
+class Trajectory:
+    """Saved samples of a run.
+
+    Attributes
+    ----------
+    t : ndarray, shape (n_saved,)
+    x, v : ndarray, shape (n_saved, n_particles, dim)
+    energy : Energy
+    stats : Stats
+    complete : bool
+        False for the part of a run kept when it blew up or was interrupted.
+    """
+
+    t: np.ndarray
+    x: np.ndarray
+    v: np.ndarray
+    energy: Energy
+    stats: Stats
+    complete: bool = True
+    scene_name: str = ""
+
+    @property
+    def final_state(self) -> State:
+        """The last saved state."""
+        return State(self.x[-1], self.v[-1])
