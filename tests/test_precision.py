@@ -40,7 +40,10 @@ def test_whole_dts_divide_t_end():
 @pytest.mark.parametrize("gamma", [0.0, 0.3])
 def test_fitted_orders_of_every_method_on_the_oscillator(gamma):
     scene = oscillator(gamma=gamma)
-    result = precision.convergence(scene, mslab.methods(), [0.1, 0.05, 0.025, 0.0125], t_end=2.0)
+    # orders 5 and up reach round-off at the small steps: they get larger ones
+    dts = {m: [0.1, 0.05, 0.025, 0.0125] if mslab.get_method(m).order <= 4 else [0.2, 0.1, 0.05, 0.025]
+           for m in mslab.methods()}
+    result = precision.convergence(scene, mslab.methods(), dts, t_end=2.0)
     assert set(result.orders) == set(mslab.methods())
     for m, p in result.orders.items():
         assert abs(p - mslab.get_method(m).order) <= 0.2, (m, p)

@@ -140,6 +140,10 @@ class ForceModel:
                                   self.stiffness, self.rest_length, self.f_gravity)
 
 
+#: the one-stage tableau of a kick whose forces do not depend on velocity
+_EULER = (np.zeros((1, 1)), np.ones(1))
+
+
 def _f64(a) -> np.ndarray:
     return np.ascontiguousarray(a, dtype=np.float64)
 
@@ -204,9 +208,9 @@ class Stepper:
             drift, kick = self.arrays
             mem_a, mem_p = self._mem
             reuse = bool(ig.fsal and not self.system.velocity_dependent)
-            symmetric = bool(ig.symmetric_kicks and self.system.velocity_dependent)
-            out = kn.run_splitting(x, v, float(state.dissipated), _f64(drift), _f64(kick), reuse, symmetric,
-                                   mem_a, mem_p, int(ig.order), *common, *args)
+            kA, kb = (ig.kick_method.A, ig.kick_method.b) if self.system.velocity_dependent else _EULER
+            out = kn.run_splitting(x, v, float(state.dissipated), _f64(drift), _f64(kick), reuse, _f64(kA),
+                                   _f64(kb), mem_a, mem_p, *common, *args)
         else:
             mem_x, mem_a, mem_p = self._mem
             code = kn.VERLET if self.loop == "verlet" else kn.LEAPFROG

@@ -221,23 +221,26 @@ LEAPFROG = 3
 
 
 @njit(cache=True)
-def run_splitting(x, v, dissipated, drift, kick, reuse, symmetric, mem_a, mem_p, corrections,
+def run_splitting(x, v, dissipated, drift, kick, reuse, kA, kb, mem_a, mem_p,
                   dt, step, n_steps, saved, k, xs, vs, ds, limit,
                   inv_mass, i, j, stiffness, rest_length, damping, damped, f_gravity, gamma):
     """Steps of a drift/kick splitting (``mslab/integrators/splitting.py``).
 
     ``x += a_0 h v; v += b_0 h a; x += a_1 h v; ...; x += a_k h v`` with ``a = drift``,
     ``b = kick``. ``reuse``: the first kick takes the acceleration of the previous step's
-    last kick from ``mem_a, mem_p`` (first same as last). ``symmetric``: each kick is
-    ``v' = v + b h a(x, (v + v')/2)``, ``corrections`` fixed-point corrections from the
-    explicit kick. Returns ``(step, k, dissipated, status, n_force)``.
+    last kick from ``mem_a, mem_p`` (first same as last). Each kick is one step of the
+    explicit tableau ``(kA, kb)`` on ``v' = a(x, v)`` with x fixed (a one-stage Euler
+    tableau when forces do not depend on velocity). Returns
+    ``(step, k, dissipated, status, n_force)``.
     """
     n, dim = x.shape
     nk = kick.shape[0]
-    a = np.empty((n, dim))
-    vn = np.empty((n, dim))
-    vm = np.empty((n, dim))
+    ns = kb.shape[0]
+    acc = np.empty((ns, n, dim))
+    pw = np.empty(ns)
+    vi = np.empty((n, dim))
     n_force = 0
+    p = 0.0
     while step < n_steps:
         step += 1
         work = 0.0
@@ -248,35 +251,33 @@ def run_splitting(x, v, dissipated, drift, kick, reuse, symmetric, mem_a, mem_p,
                     for c in range(dim):
                         x[q, c] = x[q, c] + hd * v[q, c]
             h = dt * kick[st]
-            if st == 0 and reuse:
+            for r in range(ns):
+                if r == 0 and st == 0 and reuse:
+                    for q in range(n):
+                        for c in range(dim):
+                            acc[0, q, c] = mem_a[q, c]
+                    pw[0] = mem_p[0]
+                    continue
                 for q in range(n):
                     for c in range(dim):
-                        a[q, c] = mem_a[q, c]
-                p = mem_p[0]
-            else:
-                p = rhs(x, v, inv_mass, i, j, stiffness, rest_length, damping, damped, f_gravity, gamma, a)
+                        vi[q, c] = v[q, c]
+                for u in range(r):
+                    if kA[r, u] != 0.0:
+                        hu = h * kA[r, u]
+                        for q in range(n):
+                            for c in range(dim):
+                                vi[q, c] = vi[q, c] + hu * acc[u, q, c]
+                pw[r] = rhs(x, vi, inv_mass, i, j, stiffness, rest_length, damping, damped, f_gravity,
+                            gamma, acc[r])
                 n_force += 1
-            if symmetric:
-                for q in range(n):
-                    for c in range(dim):
-                        vn[q, c] = v[q, c] + h * a[q, c]
-                for _ in range(corrections):
+            p = 0.0
+            for r in range(ns):
+                if kb[r] != 0.0:
+                    hb = h * kb[r]
                     for q in range(n):
                         for c in range(dim):
-                            vm[q, c] = 0.5 * (v[q, c] + vn[q, c])
-                    p = rhs(x, vm, inv_mass, i, j, stiffness, rest_length, damping, damped, f_gravity,
-                            gamma, a)
-                    n_force += 1
-                    for q in range(n):
-                        for c in range(dim):
-                            vn[q, c] = v[q, c] + h * a[q, c]
-                for q in range(n):
-                    for c in range(dim):
-                        v[q, c] = vn[q, c]
-            else:
-                for q in range(n):
-                    for c in range(dim):
-                        v[q, c] = v[q, c] + h * a[q, c]
+                            v[q, c] = v[q, c] + hb * acc[r, q, c]
+                    p += kb[r] * pw[r]
             work += h * p
         if drift[nk] != 0.0:
             hd = dt * drift[nk]
@@ -286,8 +287,8 @@ def run_splitting(x, v, dissipated, drift, kick, reuse, symmetric, mem_a, mem_p,
         if reuse:
             for q in range(n):
                 for c in range(dim):
-                    mem_a[q, c] = a[q, c]
-            mem_p[0] = p
+                    mem_a[q, c] = acc[0, q, c]
+            mem_p[0] = pw[0]
         dissipated = dissipated + work
         if k < saved.shape[0] and saved[k] == step:
             _save(x, v, dissipated, xs, vs, ds, k)

@@ -13,6 +13,7 @@ is picked up with no other edit.
 
 import importlib
 import pkgutil
+import sys
 
 from mslab.integrators.base import COURSE_METHODS, FAMILIES, Integrator, get_method, methods, register
 from mslab.integrators.runge_kutta import ExplicitRK, ImplicitRK
@@ -21,9 +22,24 @@ from mslab.integrators.two_step import Leapfrog, Verlet
 
 _FRAMEWORK = {"base", "coefficients", "runge_kutta", "solvers", "splitting", "two_step"}
 
-for _info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
-    if _info.name not in _FRAMEWORK and not _info.name.startswith("_"):
-        importlib.import_module(f"{__name__}.{_info.name}")
+
+def discover() -> list[str]:
+    """Import every method module in this package's folders not imported yet; return their names.
+
+    Runs once on import; call it again after adding a folder to ``__path__`` or a file to
+    the package at run time (the tests of ``docs/extending.md`` do).
+    """
+    found = []
+    for info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
+        name = f"{__name__}.{info.name}"
+        if info.name in _FRAMEWORK or info.name.startswith("_") or name in sys.modules:
+            continue
+        importlib.import_module(name)
+        found.append(info.name)
+    return found
+
+
+discover()
 
 __all__ = ["COURSE_METHODS", "FAMILIES", "ExplicitRK", "ImplicitRK", "Integrator", "Leapfrog", "Splitting",
-           "Verlet", "get_method", "methods", "register"]
+           "Verlet", "discover", "get_method", "methods", "register"]

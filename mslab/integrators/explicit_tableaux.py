@@ -63,3 +63,21 @@ rk4 = register(ExplicitRK(
     Order 4; four force evaluations per step. ``R(z) = sum_{k<=4} z^k / k!``; real
     stability interval about [-2.785, 0], imaginary about |y| <= 2.828.
     """))
+
+rk6 = register(ExplicitRK(
+    [[0, 0, 0, 0, 0, 0, 0],
+     [Fr(1, 3), 0, 0, 0, 0, 0, 0],
+     [0, Fr(2, 3), 0, 0, 0, 0, 0],
+     [Fr(1, 12), Fr(1, 3), Fr(-1, 12), 0, 0, 0, 0],
+     [Fr(-1, 16), Fr(9, 8), Fr(-3, 16), Fr(-3, 8), 0, 0, 0],
+     [0, Fr(9, 8), Fr(-3, 8), Fr(-3, 4), Fr(1, 2), 0, 0],
+     [Fr(9, 44), Fr(-9, 11), Fr(63, 44), Fr(18, 11), 0, Fr(-16, 11), 0]],
+    [Fr(11, 120), 0, Fr(27, 40), Fr(27, 40), Fr(-4, 15), Fr(-4, 15), Fr(11, 120)],
+    name="rk6", order=6,
+    doc="""Butcher's seven-stage method of order 6 (beyond the course).
+
+    Seven force evaluations per step, the fewest an explicit order-6 tableau can have.
+    Splittings of order 5 or 6 integrate their kicks with it when forces depend on
+    velocity. Reference: J. C. Butcher, J. Austral. Math. Soc. 4 (1964) 179; Hairer,
+    Norsett & Wanner, Solving ODEs I, II.5 (eq. 5.19 family).
+    """))

@@ -17,25 +17,27 @@ in ``State.memory`` and reused, so such a method costs ``k - 1`` force evaluatio
 step (plus one in ``start``) — as long as no force depends on velocity.
 
 **Velocity-dependent forces (damping, friction) — this family's choice.** Then a kick is
-no exact flow any more. Methods of order 1 kick explicitly with the current velocity,
-``v' = v + b h a(x, v)`` (the course's symplectic Euler, seed eqs. 7-10, exactly). Methods
-of order 2 and higher kick with the implicit midpoint rule in the velocity,
-``v' = v + b h a(x, (v + v')/2)`` (x fixed), solved by ``p`` fixed-point corrections from
-the explicit kick (``p`` the order; each correction is one counted force evaluation and
-gains one power of h, so the kick is symmetric up to ``O(h^(p+2))``): every symmetric
-composition (velocity Verlet, Forest-Ruth, Yoshida's methods) keeps its order on damped
-scenes, at ``p + 1`` evaluations per kick. A fixed count keeps the work of a step
-predictable (and the compiled loop's counts equal to the numpy loop's). The dissipated
-power is booked at each kick's last velocity with weight ``b_i h``.
+no exact flow any more: it is the flow of ``v' = a(x, v)`` with x held fixed, and a
+splitting of order p keeps its order when each kick approximates that flow to
+``O(h^(p+1))``. So a kick takes one step of the explicit Runge-Kutta method of the
+splitting's order on that sub-problem (:data:`KICK_METHODS`: ``euler`` for order 1 —
+which is exactly the course's symplectic Euler, seed eqs. 7-10 — ``midpoint``, ``rk3``,
+``rk4``, and ``rk6`` for orders 5 and 6), with ``s`` counted force evaluations per kick.
+Forces that depend on positions only make every stage equal, so then a kick costs one
+evaluation. The dissipated power is booked with the sub-step's weights ``b_i h b_j``.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from mslab.integrators.base import Integrator
+from mslab.integrators.base import Integrator, get_method
 from mslab.integrators.coefficients import as_given, frozen
 from mslab.state import State
+
+#: The explicit Runge-Kutta method that integrates a kick with velocity-dependent forces,
+#: by the splitting's order.
+KICK_METHODS = {1: "euler", 2: "midpoint", 3: "rk3", 4: "rk4", 5: "rk6", 6: "rk6"}
 
 
 class Splitting(Integrator):
@@ -73,9 +75,16 @@ class Splitting(Integrator):
         self.fsal = bool(self.drift[0] == 0.0 and self.drift[-1] == 0.0 and self.kick.size > 1)
         self.n_stages = self.kick.size - (1 if self.fsal else 0)
         self.n_start = 1 if self.fsal else 0
-        self.symmetric_kicks = self.order >= 2
+        if self.order > max(KICK_METHODS):
+            raise ValueError(f"splitting {name!r}: no kick integrator for order {self.order} "
+                             f"(velocity-dependent forces need one of order >= {self.order})")
         if doc:
             self.__doc__ = doc
+
+    @property
+    def kick_method(self):
+        """The explicit Runge-Kutta method of this order that steps kicks with velocity-dependent forces."""
+        return get_method(KICK_METHODS[max(self.order, 1)])
 
     @property
     def compiled(self):
@@ -93,15 +102,26 @@ class Splitting(Integrator):
         return State(state.x, state.v, (a, p), state.dissipated)
 
     def _kick(self, system, x, v, bh: float):
-        """``v' = v + bh a``: explicit, or the symmetric (implicit midpoint) kick."""
+        """``v' = v + bh a(x, v)``, by :attr:`kick_method` when forces depend on velocity."""
         a, p = system.rhs(x, v)
-        new = v + bh * a
-        if not (self.symmetric_kicks and system.velocity_dependent):
-            return new, p
-        for _ in range(self.order):  # each correction gains a power of h: the order is kept
-            a, p = system.rhs(x, 0.5 * (v + new))
-            new = v + bh * a
-        return new, p
+        if not system.velocity_dependent:
+            return v + bh * a, p
+        rk = self.kick_method
+        accs, powers = [a], [p]
+        for i in range(1, rk.n_stages):
+            vi = v
+            for j in range(i):
+                if rk.A[i, j] != 0.0:
+                    vi = vi + (bh * rk.A[i, j]) * accs[j]
+            a, p = system.rhs(x, vi)
+            accs.append(a)
+            powers.append(p)
+        new, power = v, 0.0
+        for bi, a, p in zip(rk.b, accs, powers, strict=True):
+            if bi != 0.0:
+                new = new + (bh * bi) * a
+                power += bi * p
+        return new, power
 
     def step(self, system, state: State, dt: float) -> State:
         """One step: drifts and kicks in turn (see the class docstring)."""
@@ -127,13 +147,20 @@ class Splitting(Integrator):
     def oscillator_matrix(self, h_omega, h_gamma):
         """Product of the drift and kick matrices on ``(x, dt v)`` for ``x'' = -w^2 x - gamma x'``.
 
-        Drift ``a``: ``[[1, a], [0, 1]]``. Explicit kick ``b``: ``[[1, 0], [-b w2, 1 - b g]]``.
-        Symmetric kick (order >= 2, ``g > 0``): ``u_0 = u + b (-w2 x - g u)``, then ``p``
-        corrections ``u_(k+1) = u + b (-w2 x - g (u + u_k)/2)``, as the step does.
+        Drift ``a``: ``[[1, a], [0, 1]]``. A kick ``b`` steps ``u' = -g u - w2 x`` (x fixed)
+        over ``b`` with its Runge-Kutta method ``(A_k, b_k)``: ``u -> R(z) u - b w2 S(z) x``
+        with ``z = -b g``, ``S(z) = b_k^T (I - z A_k)^-1 1`` and ``R = 1 + z S`` — for
+        ``g = 0`` the plain kick ``[[1, 0], [-b w2, 1]]``.
         """
         w2, g = np.broadcast_arrays(np.square(np.asarray(h_omega, dtype=float)),
                                     np.asarray(h_gamma, dtype=float))
         eye = np.broadcast_to(np.eye(2), w2.shape + (2, 2))
+        rk = self.kick_method
+        # S(z) = sum_k (b_k^T A_k^k 1) z^k, a polynomial for the explicit tableau
+        coef, w = [], np.ones(rk.n_stages)
+        for _ in range(rk.n_stages):
+            coef.append(float(rk.b @ w))
+            w = rk.A @ w
         M = eye.copy()
 
         def drift(a):
@@ -143,12 +170,9 @@ class Splitting(Integrator):
 
         for i, b in enumerate(self.kick):
             M = drift(self.drift[i]) @ M
-            alpha, beta = -b * w2, 1.0 - b * g           # u' = alpha x + beta u
-            if self.symmetric_kicks:                      # (with g = 0 the corrections change nothing)
-                for _ in range(self.order):
-                    alpha, beta = -b * w2 - 0.5 * b * g * alpha, 1.0 - 0.5 * b * g * (1.0 + beta)
+            S = np.polynomial.polynomial.polyval(-b * g, coef)
             K = eye.copy()
-            K[..., 1, 0] = alpha
-            K[..., 1, 1] = beta
+            K[..., 1, 0] = -b * w2 * S
+            K[..., 1, 1] = 1.0 - b * g * S
             M = K @ M
         return drift(self.drift[-1]) @ M

@@ -39,8 +39,8 @@ velocity_verlet = register(Splitting(
 
     Order 2; one force evaluation per step (the last kick's acceleration is the next first
     one; one start-up evaluation); symplectic and time-reversible; stable for ``h w < 2``.
-    Same positions as Verlet and leapfrog. With velocity-dependent forces its kicks are
-    symmetric (implicit midpoint in v, see :mod:`mslab.integrators.splitting`).
+    Same positions as Verlet and leapfrog. With velocity-dependent forces each kick is a
+    midpoint-rule step in v (two evaluations; see :mod:`mslab.integrators.splitting`).
     """))
 
 _theta = 1.0 / (2.0 - 2.0 ** (1.0 / 3.0))
