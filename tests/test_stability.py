@@ -128,6 +128,40 @@ def _measured_oscillator_limit(method):
     return lo
 
 
+def test_forest_ruth_limit_from_its_coefficients_and_from_real_steps():
+    """Forest-Ruth: about 1.5734 (Forest & Ruth 1990), from the product of shear matrices and measured."""
+    assert st.oscillator_limit("forest_ruth") == pytest.approx(1.5734, abs=1e-4)
+    measured = _measured_oscillator_limit("forest_ruth")
+    assert st.oscillator_limit("forest_ruth") == pytest.approx(measured, abs=1e-5)
+
+
+def _measured_first_limit(method, step=0.01):
+    """The first instability of the real step: scan h w upwards, then bisect (stability may return later)."""
+    def stable(w):
+        return st.spectral_radius(st.measured_amplification_matrix(method, w, 0.0, delta=1e-3)) <= 1 + 1e-7
+
+    lo = step
+    while stable(lo + step):
+        lo += step
+    hi = lo + step
+    for _ in range(30):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+    return lo
+
+
+def test_every_method_without_R_is_checked_against_its_real_step():
+    """The registry decides which methods are partitioned; each one's limit = the real step's first one.
+
+    Yoshida's sixth-order method is unstable near h w = 2.28 and stable again up to 2.8: the limit
+    is the first instability.
+    """
+    partitioned = [m for m in mslab.methods() if mslab.get_method(m).stability_function(np.zeros(1)) is None]
+    assert set(PARTITIONED) <= set(partitioned)
+    for m in partitioned:
+        assert st.oscillator_limit(m) == pytest.approx(_measured_first_limit(m), abs=1e-5), m
+
+
 @pytest.mark.parametrize("method", PARTITIONED + ["rk4"])
 def test_oscillator_limit_against_bisection_on_the_real_step(method):
     expected = 2.0 if method in PARTITIONED else 2 * math.sqrt(2)

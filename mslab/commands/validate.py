@@ -76,7 +76,10 @@ def line(record: dict) -> str:
         when = f"; about {duration(record['estimated_seconds'])} (from a few timed steps)"
     else:
         when = ""
-    return (f"{record['file']}: ok ({record['n_particles']} particles, {record['n_springs']} springs, "
+    from mslab.scenes.builder import plural
+
+    size = f"{plural(record['n_particles'], 'particle')}, {plural(record['n_springs'], 'spring')}"
+    return (f"{record['file']}: ok ({size}, "
             f"effects: {', '.join(record['effects']) or 'none'}; {record['method']}, dt = {record['dt']:g}, "
             f"t_end = {record['t_end']:g} s: {cost.describe()}{when})")
 
