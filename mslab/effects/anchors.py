@@ -15,13 +15,13 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
-import numpy.typing as npt
 
 from mslab.effects.base import BuildContext, Effect, block_diagonal
 from mslab.effects.registry import register
 from mslab.effects.schema import Key
 
 if TYPE_CHECKING:
+    import numpy.typing as npt
     import scipy.sparse as sp
 
     from mslab.scenes.builder import SceneBuilder

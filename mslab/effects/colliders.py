@@ -16,7 +16,6 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
-import numpy.typing as npt
 
 from mslab.effects.base import BuildContext, Effect, block_diagonal
 from mslab.effects.registry import register
@@ -24,6 +23,7 @@ from mslab.effects.schema import Key
 from mslab.errors import SceneError
 
 if TYPE_CHECKING:
+    import numpy.typing as npt
     import scipy.sparse as sp
 
     from mslab.scenes.builder import SceneBuilder

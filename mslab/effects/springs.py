@@ -10,7 +10,6 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
-import numpy.typing as npt
 import scipy.sparse as sp
 
 from mslab.effects.base import BuildContext, Effect
@@ -19,6 +18,8 @@ from mslab.effects.schema import Key, check_keys
 from mslab.effects.spring_table import SPRING_KINDS, SpringTable
 
 if TYPE_CHECKING:
+    import numpy.typing as npt
+
     from mslab.scenes.bodies import Body
     from mslab.scenes.builder import SceneBuilder
 

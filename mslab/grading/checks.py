@@ -11,11 +11,12 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import numpy.typing as npt
 
 from mslab.grading.remote import StudentError
 
 if TYPE_CHECKING:
+    import numpy.typing as npt
+
     from mslab.grading.problems import Problem
     from mslab.state import State
 

@@ -12,10 +12,9 @@ from __future__ import annotations
 import types
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import numpy.typing as npt
 
 from mslab.effects import Springs, registry
 from mslab.effects.base import BuildContext, Effect
@@ -23,6 +22,9 @@ from mslab.effects.schema import check_values, describe
 from mslab.errors import SceneError
 from mslab.state import State
 from mslab.system import System
+
+if TYPE_CHECKING:
+    import numpy.typing as npt
 
 
 def plural(n: int, word: str) -> str:

@@ -9,14 +9,17 @@ keys each generator reads), :func:`generator_shape` (checks them), :func:`genera
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
-import numpy.typing as npt
 
 from mslab.effects.schema import describe, integer, number, string, vector
 from mslab.errors import SceneError
 from mslab.scenes.builder import Scene, SceneBuilder
 from mslab.scenes.oscillator import oscillator, oscillator_solution
+
+if TYPE_CHECKING:
+    import numpy.typing as npt
 
 __all__ = ["GENERATORS", "PIN_SETS", "chain", "cloth", "generated_positions", "generator_shape",
            "grid_springs", "lattice", "oscillator", "oscillator_solution", "pin_set"]

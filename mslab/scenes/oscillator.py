@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import numpy.typing as npt
 
 from mslab.scenes.builder import Scene, SceneBuilder
+
+if TYPE_CHECKING:
+    import numpy.typing as npt
 
 
 def oscillator_solution(t: npt.ArrayLike, u0: float, w0: float, beta: float,
