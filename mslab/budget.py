@@ -154,7 +154,7 @@ def memory_problem(cost: RunCost, budget: int | None, budget_name: str = "") -> 
 
 def time_per_step(scene: Scene, method: str | Integrator | None = None, dt: float | None = None, *,
                   seconds: float = 0.3, max_steps: int = 100_000) -> tuple[float, int]:
-    """Measure the seconds per step on the first steps of a run, and how many steps were timed.
+    """Measure the seconds per step on the first steps of a run; return it and how many steps were timed.
 
     One untimed step first (it pays compilation and first-call costs), then runs of 1, 2,
     4, ... steps until one takes ``seconds / 2`` (or ``max_steps``); the time per step is the

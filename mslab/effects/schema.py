@@ -193,7 +193,7 @@ def string(value: Any, name: str, choices: Iterable[str] | None = None) -> str:
 
 
 def vector(value: Any, name: str, dim: int) -> np.ndarray:
-    """Check a list of ``dim`` finite numbers."""
+    """Return ``value`` checked as a list of ``dim`` finite numbers."""
     value = _plain(value)
     if not isinstance(value, list) or len(value) != dim:
         raise SceneError(name, f"must be a list of {dim} numbers, got {describe(value)}")
@@ -201,7 +201,7 @@ def vector(value: Any, name: str, dim: int) -> np.ndarray:
 
 
 def vectors(value: Any, name: str, dim: int, n: int | None = None) -> np.ndarray:
-    """Check a non-empty list of ``dim``-vectors (``n`` of them when given), shape (m, dim)."""
+    """Return ``value`` checked as a non-empty list of ``dim``-vectors (``n`` when given), shape (m, dim)."""
     value = _plain(value)
     if not isinstance(value, list) or not value:
         raise SceneError(name, f"must be a non-empty list of {dim}-vectors, got {describe(value)}")
@@ -211,7 +211,7 @@ def vectors(value: Any, name: str, dim: int, n: int | None = None) -> np.ndarray
 
 
 def numbers(value: Any, name: str, n: int, low: float | None = None, strict: bool = False) -> np.ndarray:
-    """Check one number for all, or a list of ``n`` numbers; shape (n,)."""
+    """Return ``value`` checked as one number for all, or a list of ``n`` numbers; shape (n,)."""
     value = _plain(value)
     if isinstance(value, list):
         if len(value) != n:
@@ -221,7 +221,7 @@ def numbers(value: Any, name: str, n: int, low: float | None = None, strict: boo
 
 
 def index(value: Any, name: str, n: int) -> int:
-    """Check a particle index in ``0..n-1``."""
+    """Return ``value`` checked as a particle index in ``0..n-1``."""
     if isinstance(value, bool | np.bool_) or not isinstance(value, int | np.integer):
         raise SceneError(name, f"particle index must be a whole number, got {describe(value)}")
     if not 0 <= value < n:
@@ -230,7 +230,7 @@ def index(value: Any, name: str, n: int) -> int:
 
 
 def indices(value: Any, name: str, n: int) -> np.ndarray:
-    """Check a non-empty list of particle indices, int64 array."""
+    """Return ``value`` checked as a non-empty list of particle indices, int64 array."""
     value = _plain(value)
     if not isinstance(value, list) or not value:
         raise SceneError(name, f"must be a non-empty list of particle indices, got {describe(value)}")
@@ -238,7 +238,7 @@ def indices(value: Any, name: str, n: int) -> np.ndarray:
 
 
 def pairs(value: Any, name: str, n: int) -> np.ndarray:
-    """Check a non-empty list of ``[i, j]`` index pairs with ``i != j``, int64 array (m, 2)."""
+    """Return ``value`` checked as a non-empty list of ``[i, j]`` pairs, ``i != j``; int64 array (m, 2)."""
     if isinstance(value, np.ndarray) and value.ndim == 2 and value.shape[1] == 2 \
             and np.issubdtype(value.dtype, np.integer) and value.shape[0] > 0:
         out = value.astype(np.int64)  # fast path for large generated arrays
