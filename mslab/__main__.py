@@ -1,3 +1,5 @@
+"""``python -m mslab``: the ``mslab`` command line."""
+
 import sys
 
 from mslab.cli import main

@@ -17,6 +17,11 @@ import re
 import time
 import warnings
 from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from mslab.integrators.base import Integrator
+    from mslab.scenes.builder import Scene
 
 #: share of the available memory a run's saved data may take by default
 DEFAULT_FRACTION = 0.5
@@ -94,6 +99,7 @@ class RunCost:
 
     @property
     def bytes_per_sample(self) -> int:
+        """Bytes of one saved sample: positions, velocities and the per-sample scalars."""
         return 8 * (2 * self.n_particles * self.dim + SCALARS_PER_SAMPLE)
 
     def describe(self) -> str:
@@ -102,12 +108,16 @@ class RunCost:
                 f"{size_text(self.bytes_saved)} of saved data")
 
     def as_dict(self) -> dict:
+        """Return the cost as plain data (for JSON)."""
         return asdict(self)
 
 
-def run_cost(scene, dt: float | None = None, t_end: float | None = None,
+def run_cost(scene: Scene, dt: float | None = None, t_end: float | None = None,
              save_every: int | None = None) -> RunCost:
-    """Steps, saved samples and bytes of saved data of a run (defaults from ``scene.settings``)."""
+    """Return the steps, saved samples and bytes of saved data of a run.
+
+    ``dt``, ``t_end`` and ``save_every`` default to ``scene.settings``.
+    """
     from mslab.simulate import step_count
 
     s = scene.settings
@@ -142,9 +152,9 @@ def memory_problem(cost: RunCost, budget: int | None, budget_name: str = "") -> 
     return (f"{what}; use save_every >= {every} or t_end <= {longest:.6g} (or raise --max-memory)")
 
 
-def time_per_step(scene, method: str | None = None, dt: float | None = None, *,
+def time_per_step(scene: Scene, method: str | Integrator | None = None, dt: float | None = None, *,
                   seconds: float = 0.3, max_steps: int = 100_000) -> tuple[float, int]:
-    """Seconds per step measured on the first steps of a run, and how many steps were timed.
+    """Measure the seconds per step on the first steps of a run; return it and how many steps were timed.
 
     One untimed step first (it pays compilation and first-call costs), then runs of 1, 2,
     4, ... steps until one takes ``seconds / 2`` (or ``max_steps``); the time per step is the

@@ -29,6 +29,7 @@ from mslab.scenes import chain  # noqa: E402
 
 
 def chain_tour(out: Path, dt: float = 1e-3, t_end: float = 2.0) -> list:
+    """Run the chain under every course method: print the table, save the energy figure, return the runs."""
     scene = chain(10, dim=2, stiffness=200.0)
     print(f"1. {scene.description}, undamped, under gravity: every course method, dt = {dt:g}, "
           f"t_end = {t_end:g}")
@@ -59,8 +60,11 @@ def chain_tour(out: Path, dt: float = 1e-3, t_end: float = 2.0) -> list:
     return runs
 
 
-def warm_up(scene, method: str, dt: float, steps: int = 10) -> float:
-    """Seconds of a first short run of ``method`` (compilation, caches): kept out of the wall column."""
+def warm_up(scene: mslab.Scene, method: str, dt: float, steps: int = 10) -> float:
+    """Return the seconds of a first short run of ``method`` (compilation, caches).
+
+    They are kept out of the wall column.
+    """
     start = time.perf_counter()
     try:
         mslab.simulate(scene, method, dt=dt, t_end=steps * dt, save_every=steps, progress=False)
@@ -70,6 +74,7 @@ def warm_up(scene, method: str, dt: float, steps: int = 10) -> float:
 
 
 def cloth_tour(out: Path) -> None:
+    """Run ``mslab run cloth --animate gif`` into ``out/cloth``."""
     from mslab.cli import main as cli_main
 
     print("2. cloth under implicit Euler, with an animation (mslab run cloth --animate gif)")
@@ -79,6 +84,7 @@ def cloth_tour(out: Path) -> None:
 
 
 def volume_tour(out: Path) -> None:
+    """Drop the soft cubes with and without shear springs; plot their convex-hull volume."""
     from scipy.spatial import ConvexHull
 
     print("3. volume collapse: a soft cube dropped on a plane, with and without shear springs")
@@ -98,6 +104,7 @@ def volume_tour(out: Path) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the three tours into ``--out`` (default ``out/``); return the exit code."""
     parser = argparse.ArgumentParser(description="mslab tour")
     parser.add_argument("--out", default="out")
     args = parser.parse_args(argv)

@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from mslab.trajectory import Trajectory
+
 
 class MslabError(Exception):
     """Base class of every error mslab raises on purpose."""
@@ -42,7 +47,7 @@ class InstabilityError(MslabError, FloatingPointError):
     """
 
     def __init__(self, message: str, *, method: str = "", step: int = 0, t: float = 0.0,
-                 dt: float = 0.0, stable_dt: float | None = None, trajectory=None):
+                 dt: float = 0.0, stable_dt: float | None = None, trajectory: Trajectory | None = None):
         super().__init__(message)
         self.method = method
         self.step = step

@@ -19,7 +19,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable
-from typing import TextIO
+from typing import Any, TextIO
 
 #: seconds of work before the bar appears
 DELAY = 2.0
@@ -109,6 +109,7 @@ class Progress:
 
     @property
     def elapsed(self) -> float:
+        """Seconds since the progress started."""
         return time.perf_counter() - self.start
 
     def estimate(self) -> float | None:
@@ -130,7 +131,7 @@ class Progress:
         return self.n - self._first[1] if self._first is not None else 0
 
     def line(self) -> str:
-        """The text of the progress line."""
+        """Return the text of the progress line."""
         elapsed = self.elapsed
         head = f"{self.desc}: " if self.desc else ""
         if self.total:
@@ -201,8 +202,8 @@ class Progress:
         self.close()
 
 
-def make_progress(progress, total: int, desc: str, unit: str = "step") -> tuple[Progress | None, bool]:
-    """The progress object a long computation reports to, and whether the caller owns it.
+def make_progress(progress: Any, total: int, desc: str, unit: str = "step") -> tuple[Progress | None, bool]:
+    """Return the progress object a long computation reports to, and whether the caller owns it.
 
     ``progress`` is None (a :class:`Progress` drawn only on a terminal), True (always
     drawn), False (none) or an object with ``update(n)`` given by the caller (a sweep's

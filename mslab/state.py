@@ -36,12 +36,14 @@ class State:
 
     @property
     def n_particles(self) -> int:
+        """Number of particles."""
         return self.x.shape[0]
 
     @property
     def dim(self) -> int:
+        """Number of space dimensions."""
         return self.x.shape[1]
 
     def is_finite(self) -> bool:
-        """True when every position and velocity is a finite number."""
+        """Return True when every position and velocity is a finite number."""
         return bool(np.isfinite(self.x).all() and np.isfinite(self.v).all())

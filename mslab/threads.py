@@ -17,7 +17,7 @@ F = TypeVar("F", bound=Callable)
 
 
 def single_threaded_blas(func: F) -> F:
-    """Decorator: run ``func`` with BLAS limited to one thread (threadpoolctl)."""
+    """Wrap ``func`` to run with BLAS limited to one thread (threadpoolctl); a decorator."""
 
     @functools.wraps(func)
     def wrapper(*args, **kwargs):

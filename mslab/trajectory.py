@@ -24,7 +24,7 @@ class Energy:
         return self.kinetic + self.potential + self.dissipated
 
     def energy_scale(self) -> float:
-        """The run's energy scale: the largest kinetic energy in the first quarter of the run.
+        """Return the run's energy scale: the largest kinetic energy in the first quarter of the run.
 
         Unlike ``|E(0)|`` it does not depend on where potential energy is zero (a chain
         starting at height 0 has E(0) = 0), and unlike the whole run's maximum a late
@@ -55,7 +55,7 @@ class Stats(Counters):
     wall_time: float = 0.0
 
     def as_dict(self) -> dict:
-        """Method, dt, steps, every counter and the wall time, as a plain dict."""
+        """Return the method, dt, steps, every counter and the wall time, as a plain dict."""
         counters = {f.name: getattr(self, f.name) for f in fields(Counters)}
         return {"method": self.method, "dt": self.dt, "steps": self.steps, **counters,
                 "wall_time": self.wall_time}

@@ -11,11 +11,17 @@ from __future__ import annotations
 
 import json
 import sys
+from typing import TYPE_CHECKING
 
 from mslab.commands.common import CommandError, add_common_options, atomic_write, emit_json, out_dir, say
 
+if TYPE_CHECKING:
+    import argparse
+    from pathlib import Path
 
-def register(subparsers) -> None:
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``mslab bench`` subcommand to ``subparsers``."""
     p = subparsers.add_parser(
         "bench",
         help="speed of the compiled path as ratios to reference kernels",
@@ -27,7 +33,8 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
+    """Run ``mslab bench`` with the parsed ``args``; return the exit code."""
     from mslab import fast
     from mslab.fast import benchmarks
 
@@ -62,6 +69,6 @@ def _plain(doc: dict) -> dict:
     return to_jsonable(doc)
 
 
-def _write(path, text: str) -> None:
+def _write(path: str | Path, text: str) -> None:
     with open(path, "w", encoding="utf-8") as fh:
         fh.write(text)

@@ -9,8 +9,14 @@ import sys
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    import argparse
+
+    from matplotlib.figure import Figure
 
 
 class CommandError(Exception):
@@ -21,14 +27,14 @@ class CommandError(Exception):
         super().__init__(": ".join(parts))
 
 
-def add_common_options(parser, out: bool = True) -> None:
-    """``--json`` (one JSON document on stdout) and ``--out DIR``."""
+def add_common_options(parser: argparse.ArgumentParser, out: bool = True) -> None:
+    """Add ``--json`` (one JSON document on stdout) and ``--out DIR``."""
     parser.add_argument("--json", action="store_true", help="print one JSON document on stdout, nothing else")
     if out:
         parser.add_argument("--out", metavar="DIR", default=None, help="folder for figures and data")
 
 
-def to_jsonable(obj):
+def to_jsonable(obj: Any) -> Any:
     """Convert numpy scalars/arrays (and nested containers) for json.dumps."""
     if isinstance(obj, dict):
         return {str(k): to_jsonable(v) for k, v in obj.items()}
@@ -54,13 +60,13 @@ def emit_json(doc: dict) -> None:
     sys.stdout.flush()
 
 
-def say(args, text: str) -> None:
-    """Human-readable output: stdout normally, stderr when --json owns stdout."""
+def say(args: argparse.Namespace, text: str) -> None:
+    """Print human-readable output: stdout normally, stderr when --json owns stdout."""
     print(text, file=sys.stderr if getattr(args, "json", False) else sys.stdout)
 
 
-def out_dir(args, default: str | None = None) -> Path | None:
-    """The --out folder (created), or None when no figures/data were asked for."""
+def out_dir(args: argparse.Namespace, default: str | None = None) -> Path | None:
+    """Return the --out folder (created), or None when no figures/data were asked for."""
     folder = getattr(args, "out", None) or default
     if folder is None:
         return None
@@ -69,8 +75,8 @@ def out_dir(args, default: str | None = None) -> Path | None:
     return path
 
 
-def out_path(args, default: str | None = None) -> Path | None:
-    """The --out folder, not created yet (files create it as they are written), or None.
+def out_path(args: argparse.Namespace, default: str | None = None) -> Path | None:
+    """Return the --out folder, not created yet (files create it as they are written), or None.
 
     A run interrupted before it wrote anything leaves no empty folder behind.
     """
@@ -78,15 +84,15 @@ def out_path(args, default: str | None = None) -> Path | None:
     return None if folder is None else Path(folder)
 
 
-def add_budget_option(parser) -> None:
-    """``--max-memory SIZE``: the memory budget of a run's saved data."""
+def add_budget_option(parser: argparse.ArgumentParser) -> None:
+    """Add ``--max-memory SIZE``, the memory budget of a run's saved data."""
     parser.add_argument("--max-memory", dest="max_memory", metavar="SIZE", default=None,
                         help="refuse a run whose saved data exceed SIZE (e.g. 2G, 500M; "
                              "default: half the available memory)")
 
 
-def memory_budget(args) -> tuple[int | None, str]:
-    """The budget in bytes from ``--max-memory`` (or the default) and where it comes from."""
+def memory_budget(args: argparse.Namespace) -> tuple[int | None, str]:
+    """Return the budget in bytes from ``--max-memory`` (or the default) and where it comes from."""
     from mslab.budget import DEFAULT_FRACTION, default_budget, parse_size
 
     given = getattr(args, "max_memory", None)
@@ -99,7 +105,7 @@ def memory_budget(args) -> tuple[int | None, str]:
 
 
 def method_help(what: str = "integrator") -> str:
-    """``--method`` help text listing the registered methods."""
+    """Return the ``--method`` help text listing the registered methods."""
     from mslab.integrators.base import methods
 
     return f"{what}: {', '.join(methods())} (details: `mslab methods`)"
@@ -130,7 +136,7 @@ def atomic_write(path: str | Path, write: Callable[[str], None], suffix: str | N
 
 
 def current_umask() -> int:
-    """The process's umask (read without changing it where ``/proc`` tells it)."""
+    """Return the process's umask (read without changing it where ``/proc`` tells it)."""
     try:
         with open("/proc/self/status", encoding="ascii") as fh:
             for line in fh:
@@ -151,7 +157,7 @@ def _file_mode(path: Path) -> int:
         return 0o666 & ~current_umask()
 
 
-def save_figure(fig, path: str | Path) -> Path:
+def save_figure(fig: Figure, path: str | Path) -> Path:
     """Save a matplotlib figure atomically (PNG, fixed dpi) and close it."""
     import matplotlib.pyplot as plt
 

@@ -14,14 +14,23 @@ the energy error and reads as bounded.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from mslab.commands.common import CommandError, add_common_options, emit_json, out_dir, say
 from mslab.commands.precision import fmt, method_list, resolve_scene, table, write_json
+
+if TYPE_CHECKING:
+    import argparse
+    from pathlib import Path
+
+    from mslab.scenes.builder import Scene
 
 #: default run length, in units of the scene's t_end: a verdict needs many oscillations
 LONG_RUN = 10
 
 
-def register(subparsers) -> None:
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``mslab compare`` subcommand to ``subparsers``."""
     p = subparsers.add_parser(
         "compare", help="run the course's methods on one scene: work, wall time, energy drift",
         description="Energy drift of each method on one scene: relative error of K + U + D over time, "
@@ -36,7 +45,8 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
+    """Run ``mslab compare`` with the parsed ``args``; return the exit code."""
     from mslab.precision import energy_drift
     from mslab.simulate import step_count
 
@@ -82,8 +92,11 @@ def run(args) -> int:
 
 
 def verdict_text(record: dict, dt: float) -> str:
-    """``bounded``, ``drifting``, ``drifting: blew up at step 7 (t = 0.07)`` or
-    ``no convergence at step 1 (t = 0.01)``: a failed iteration is not an energy drift."""
+    """Return the verdict of one drift record in words.
+
+    ``bounded``, ``drifting``, ``drifting: blew up at step 7 (t = 0.07)`` or ``no convergence
+    at step 1 (t = 0.01)``: a failed iteration is not an energy drift.
+    """
     if record["complete"]:
         return record["verdict"]
     step = record["steps"]
@@ -93,7 +106,7 @@ def verdict_text(record: dict, dt: float) -> str:
     return f"{record['verdict']}: blew up {where}"
 
 
-def _figure(scene, drifts, dt, folder):
+def _figure(scene: Scene, drifts: dict, dt: float, folder: Path):
     import matplotlib
 
     matplotlib.use("Agg")

@@ -6,6 +6,7 @@ import os
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from mslab.commands.common import CommandError, add_common_options, emit_json, say
 from mslab.grading.autograde import grade
@@ -13,11 +14,15 @@ from mslab.grading.isolation import DESCRIPTION
 from mslab.grading.layout import default_source
 from mslab.grading.report import format_report, gradebook_rows, printable, write_csv
 
+if TYPE_CHECKING:
+    import argparse
+
 #: seconds of grading before a progress line appears (on a terminal only)
 PROGRESS_AFTER = 2.0
 
 
-def register(subparsers) -> None:
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``mslab grade`` subcommand to ``subparsers``."""
     p = subparsers.add_parser(
         "grade", help="grade submissions (one folder, or a class folder of them)",
         description="Run every test (public and hidden, from --source) on each submission; student "
@@ -55,6 +60,7 @@ class Progress:
         self.shown = False
 
     def __call__(self, done: int, total: int) -> None:
+        """Show ``done`` of ``total`` items (once 2 s have passed, on a terminal)."""
         if not self.enabled or time.monotonic() - self.start < PROGRESS_AFTER:
             return
         elapsed = time.monotonic() - self.start
@@ -63,12 +69,14 @@ class Progress:
         self.shown = True
 
     def close(self) -> None:
+        """Erase the progress line if one was shown."""
         if self.shown:
             sys.stderr.write("\r" + " " * 50 + "\r")
             sys.stderr.flush()
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
+    """Run ``mslab grade`` with the parsed ``args``; return the exit code."""
     if args.timeout <= 0:
         raise CommandError("must be positive", key="--timeout")
     if args.jobs is not None and args.jobs < 1:

@@ -8,10 +8,16 @@ prints the same rows as one document.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from mslab.commands.common import add_common_options, emit_json, say
 
+if TYPE_CHECKING:
+    import argparse
 
-def register(subparsers) -> None:
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``mslab methods`` subcommand to ``subparsers``."""
     p = subparsers.add_parser(
         "methods",
         help="list the integrators: order, stages, family",
@@ -35,7 +41,8 @@ def rows() -> list[dict]:
     return out
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
+    """Run ``mslab methods`` with the parsed ``args``; return the exit code."""
     table = rows()
     if args.json:
         emit_json({"methods": table})

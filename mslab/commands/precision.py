@@ -15,15 +15,23 @@ from __future__ import annotations
 
 import json
 import math
+from typing import TYPE_CHECKING, Any
 
 from mslab.commands.common import CommandError, add_common_options, atomic_write, emit_json, out_dir, say
+
+if TYPE_CHECKING:
+    import argparse
+    from collections.abc import Sequence
+    from pathlib import Path
+
+    from mslab.scenes.builder import Scene
 
 #: scenes generated in code when no scene file of that name exists
 GENERATED = ("chain", "oscillator")
 
 
-def resolve_scene(spec: str, **overrides):
-    """A scene by name or path through ``mslab.load_scene``; generator names as fallback.
+def resolve_scene(spec: str, **overrides) -> Scene:
+    """Return a scene by name or path through ``mslab.load_scene``; generator names as fallback.
 
     ``oscillator`` (and ``chain`` while no scene file is installed) come from
     :mod:`mslab.scenes.generators`. ``overrides`` (dt, t_end, ...) replace run settings.
@@ -51,14 +59,15 @@ def resolve_scene(spec: str, **overrides):
 
 
 def course_methods() -> list[str]:
+    """Return the registered methods of the course, in the course's order."""
     from mslab.integrators.base import COURSE_METHODS, methods
 
     known = set(methods())
     return [m for m in COURSE_METHODS if m in known]
 
 
-def method_list(names) -> list[str]:
-    """Registry names of the methods asked for (``-`` or ``_``); course methods by default."""
+def method_list(names: Sequence[str] | None) -> list[str]:
+    """Return the registry names of the methods asked for (``-`` or ``_``); course methods by default."""
     from mslab.integrators.base import get_method
 
     if not names:
@@ -66,7 +75,8 @@ def method_list(names) -> list[str]:
     return [get_method(n).name for n in names]
 
 
-def fmt(value, spec: str = ".3g") -> str:
+def fmt(value: Any, spec: str = ".3g") -> str:
+    """Format a table cell: ``-`` for None, ``inf``/``nan`` spelled out, floats with ``spec``."""
     if value is None:
         return "-"
     if isinstance(value, float) and not math.isfinite(value):
@@ -78,14 +88,15 @@ def table(rows: list[list[str]], header: list[str]) -> str:
     """Plain fixed-width table; first column left-aligned, the others right-aligned."""
     widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(len(header))]
 
-    def line(r):
+    def line(r: list):
         return "  ".join(str(c).ljust(w) if i == 0 else str(c).rjust(w)
                          for i, (c, w) in enumerate(zip(r, widths, strict=True)))
 
     return "\n".join([line(header), "  ".join("-" * w for w in widths), *(line(r) for r in rows)])
 
 
-def register(subparsers) -> None:
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``mslab precision`` subcommand to ``subparsers``."""
     p = subparsers.add_parser(
         "precision", help="convergence and work-precision of the methods (scipy on the same axes)",
         description="Error against dt, force evaluations and wall time for each method on one scene, "
@@ -109,7 +120,7 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def write_json(path, doc: dict):
+def write_json(path: str | Path, doc: dict) -> Path:
     """Write ``doc`` as JSON to ``path`` atomically."""
     from mslab.commands.common import to_jsonable
 
@@ -122,7 +133,8 @@ def write_json(path, doc: dict):
     return atomic_write(path, write)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
+    """Run ``mslab precision`` with the parsed ``args``; return the exit code."""
     from mslab import precision
     from mslab.integrators.base import get_method
     from mslab.simulate import step_count
@@ -176,7 +188,7 @@ def run(args) -> int:
              if r["solver"] == "mslab"}   # slope between the two smallest dts
     say(args, "orders: fitted over errors below a tenth of the solution's size; local = between the two "
               "smallest dts")
-    def order(p):
+    def order(p: float | None):
         return "-" if p is None or not math.isfinite(p) else f"{p:.2f}"
 
     say(args, table([[m, order(orders[m]), order(local[m]), expected[m]] for m in methods],
@@ -188,7 +200,7 @@ def run(args) -> int:
     return 0
 
 
-def _figures(args, records, orders, expected) -> list[str]:
+def _figures(args: argparse.Namespace, records: list[dict], orders: dict, expected: dict) -> list[str]:
     folder = out_dir(args)
     if folder is None:
         return []

@@ -3,13 +3,18 @@
 from __future__ import annotations
 
 import sys
+from typing import TYPE_CHECKING
 
 from mslab.commands.common import CommandError, add_common_options, emit_json, say
 from mslab.grading.layout import default_source
 from mslab.grading.release import release
 
+if TYPE_CHECKING:
+    import argparse
 
-def register(subparsers) -> None:
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``mslab release`` subcommand to ``subparsers``."""
     p = subparsers.add_parser("release", help="write the student version of the exercises",
                               description="Copy SRC to DEST with every solution block replaced by "
                                           "'raise NotImplementedError', hidden tests left out and a "
@@ -21,7 +26,8 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
+    """Run ``mslab release`` with the parsed ``args``; return the exit code."""
     if len(args.paths) > 2:
         raise CommandError("expected [SRC] DEST", key="paths")
     if len(args.paths) == 2:

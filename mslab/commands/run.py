@@ -30,6 +30,7 @@ import math
 import sys
 import warnings
 from pathlib import Path
+from typing import TYPE_CHECKING, TextIO
 
 import numpy as np
 
@@ -45,6 +46,14 @@ from mslab.commands.common import (
     say,
 )
 
+if TYPE_CHECKING:
+    import argparse
+
+    from mslab.budget import RunCost
+    from mslab.integrators.base import Integrator
+    from mslab.scenes.builder import Scene
+    from mslab.trajectory import Trajectory
+
 #: exit code of a run that blew up or whose implicit iteration failed
 EXIT_UNSTABLE = 3
 #: exit code of an interrupted run (128 + SIGINT)
@@ -53,7 +62,8 @@ EXIT_INTERRUPTED = 130
 MAX_DOFS = 5000
 
 
-def register(subparsers) -> None:
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``mslab run`` subcommand to ``subparsers``."""
     p = subparsers.add_parser(
         "run",
         help="simulate one scene (built-in name or TOML file)",
@@ -75,8 +85,8 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def add_settings_options(p) -> None:
-    """``--method --dt --t-end --save-every``: override the scene file's [run] settings."""
+def add_settings_options(p: argparse.ArgumentParser) -> None:
+    """Add ``--method --dt --t-end --save-every``, which override the scene file's [run] settings."""
     p.add_argument("--method", default=None, metavar="METHOD", help=method_help())
     p.add_argument("--dt", type=float, default=None, help="time step [s]")
     p.add_argument("--t-end", dest="t_end", type=float, default=None, help="end time [s]")
@@ -100,8 +110,8 @@ def animation_problem(kind: str | None) -> str | None:
     return None
 
 
-def a_stable(method) -> bool:
-    """Whether no step limit applies: A-stable coefficients and not a fixed-point iteration.
+def a_stable(method: Integrator) -> bool:
+    """Tell whether no step limit applies: A-stable coefficients and not a fixed-point iteration.
 
     A-stable: ``|R(z)| <= 1`` on the whole negative real axis and the imaginary axis and
     bounded oscillations at every ``dt w`` (:mod:`mslab.stability`, from the coefficients;
@@ -115,8 +125,8 @@ def a_stable(method) -> bool:
             and stability.oscillator_limit(method) == math.inf)
 
 
-def predicted_dt(scene, method: str) -> tuple[float | None, str | None]:
-    """Predicted largest stable step (None: not computed) and a note when it was skipped.
+def predicted_dt(scene: Scene, method: str) -> tuple[float | None, str | None]:
+    """Return the predicted largest stable step (None: not computed) and a note when it was skipped.
 
     Skipped for A-stable methods (inf, no analysis needed) and above :data:`MAX_DOFS`
     unknowns (the eigenvalue analysis would take longer than many runs). On a terminal a
@@ -150,7 +160,7 @@ def prediction_line(method: str, dt: float, predicted: float | None) -> str:
 
 
 def drift_words(drift: float, method: str) -> str:
-    """What a relative change of the ledger ``K + U + D`` means (it is the method's, not physics)."""
+    """Say what a relative change of the ledger ``K + U + D`` means (it is the method's, not physics)."""
     if not math.isfinite(drift) or abs(drift) <= 1e-6:
         return ""
     if drift < 0:
@@ -158,8 +168,8 @@ def drift_words(drift: float, method: str) -> str:
     return f" (the ledger gained energy: {method} adds energy)"
 
 
-def energy_summary(traj) -> dict:
-    """Energy ledger at the start and end of a trajectory, and its relative drift."""
+def energy_summary(traj: Trajectory) -> dict:
+    """Return the energy ledger at the start and end of a trajectory, and its relative drift."""
     e = traj.energy
     drift = e.relative_drift() if len(traj.t) else np.zeros(0)
     if not len(traj.t):
@@ -175,8 +185,8 @@ def energy_summary(traj) -> dict:
     }
 
 
-def save_npz(path: Path, traj, scene) -> Path:
-    """The trajectory, its ledger and the scene's topology as one ``.npz`` (atomically)."""
+def save_npz(path: Path, traj: Trajectory, scene: Scene) -> Path:
+    """Save the trajectory, its ledger and the scene's topology as one ``.npz`` (atomically)."""
     springs = scene.springs()
     data = {
         "t": traj.t,
@@ -203,7 +213,8 @@ def save_npz(path: Path, traj, scene) -> Path:
     return atomic_write(path, lambda tmp: np.savez_compressed(tmp, **data))
 
 
-def save_outputs(folder: Path, traj, scene, animate: str | None, files: dict | None = None) -> dict:
+def save_outputs(folder: Path, traj: Trajectory, scene: Scene, animate: str | None,
+                 files: dict | None = None) -> dict:
     """Write the data, the two figures and (optionally) the animation; returns their paths.
 
     ``files`` (filled as each file is written) tells an interrupted caller what exists.
@@ -242,7 +253,8 @@ def save_outputs(folder: Path, traj, scene, animate: str | None, files: dict | N
     return files
 
 
-def _report(args, scene, traj, predicted, files, notes, cost) -> dict:
+def _report(args: argparse.Namespace, scene: Scene, traj: Trajectory, predicted: float | None, files: dict,
+            notes: list[str], cost: RunCost) -> dict:
     s = traj.stats
     t_last = float(traj.t[-1]) if len(traj.t) else 0.0
     stopped = None if traj.complete else {"step": s.steps, "t": s.steps * s.dt}
@@ -293,7 +305,8 @@ def _report(args, scene, traj, predicted, files, notes, cost) -> dict:
     return doc
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
+    """Run ``mslab run`` with the parsed ``args``; return the exit code."""
     from mslab.budget import memory_problem, run_cost, size_text
     from mslab.errors import InstabilityError, StabilityWarning
     from mslab.progress import Progress, duration
@@ -346,7 +359,8 @@ def run(args) -> int:
         warnings.simplefilter("always", StabilityWarning)
         shown = warnings.showwarning
 
-        def show(message, category, filename, lineno, file=None, line=None):
+        def show(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+                 file: TextIO | None = None, line: str | None = None):
             if not issubclass(category, StabilityWarning):
                 return shown(message, category, filename, lineno, file, line)
             notes.append(str(message))

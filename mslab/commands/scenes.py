@@ -2,10 +2,16 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from mslab.commands.common import add_common_options, emit_json, say
 
+if TYPE_CHECKING:
+    import argparse
 
-def register(subparsers) -> None:
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``mslab scenes`` subcommand to ``subparsers``."""
     p = subparsers.add_parser(
         "scenes",
         help="list the built-in scenes (or print one scene file)",
@@ -27,7 +33,8 @@ def describe(name: str) -> dict:
     return {"name": name, **summary, "file": str(scene_path(name))}
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
+    """Run ``mslab scenes`` with the parsed ``args``; return the exit code."""
     from mslab.scenes.loader import scene_names, scene_path
 
     if args.name:

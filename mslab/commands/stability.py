@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+from typing import TYPE_CHECKING
 
 from mslab.commands.common import (
     CommandError,
@@ -24,8 +25,13 @@ from mslab.commands.common import (
 )
 from mslab.integrators.base import get_method
 
+if TYPE_CHECKING:
+    import argparse
+    from pathlib import Path
 
-def register(subparsers) -> None:
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``mslab stability`` subcommand to ``subparsers``."""
     p = subparsers.add_parser(
         "stability", help="stability regions, real/imaginary intervals and oscillator limits of methods",
         description="Dahlquist stability (R(z), z = dt*lambda) and the oscillator test of each method.")
@@ -54,7 +60,8 @@ def _fmt(value: float) -> str:
     return f"{value:.4f}"
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
+    """Run ``mslab stability`` with the parsed ``args``; return the exit code."""
     from mslab.stability import summary
 
     names = _methods(args.methods)
@@ -90,7 +97,7 @@ def run(args) -> int:
     return 0
 
 
-def _figure(names, folder):
+def _figure(names: list[str], folder: Path):
     import matplotlib
 
     matplotlib.use("Agg")

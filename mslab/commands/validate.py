@@ -12,6 +12,7 @@ file is valid, 2 otherwise.
 from __future__ import annotations
 
 import sys
+from typing import TYPE_CHECKING
 
 from mslab.commands.common import (
     add_budget_option,
@@ -22,8 +23,12 @@ from mslab.commands.common import (
     say,
 )
 
+if TYPE_CHECKING:
+    import argparse
 
-def register(subparsers) -> None:
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``mslab validate`` subcommand to ``subparsers``."""
     p = subparsers.add_parser(
         "validate",
         help="check scene files without running them (and estimate what a run costs)",
@@ -39,7 +44,7 @@ def register(subparsers) -> None:
 
 
 def check(name: str, budget: int | None, budget_name: str, timing: bool) -> dict:
-    """The validation record of one file: ``ok``, the cost, or ``key``/``reason``/``error``."""
+    """Return the validation record of one file: ``ok``, the cost, or ``key``/``reason``/``error``."""
     from mslab.budget import memory_problem, run_cost, time_per_step
     from mslab.errors import SceneError
     from mslab.progress import Progress
@@ -84,7 +89,8 @@ def line(record: dict) -> str:
             f"t_end = {record['t_end']:g} s: {cost.describe()}{when})")
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
+    """Run ``mslab validate`` with the parsed ``args``; return the exit code."""
     from mslab.commands.precision import write_json
 
     budget, budget_name = memory_budget(args)

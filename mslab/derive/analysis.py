@@ -11,7 +11,9 @@ up the leading term shown may vanish on it while a system problem still sees it.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import sympy as sp
 
@@ -20,6 +22,9 @@ from mslab.derive.conditions import OrderAboveLimit, rk_order, splitting_order
 from mslab.derive.reading import Reading, read
 from mslab.derive.runs import rk_series, run_series, splitting_series
 from mslab.derive.series import coeff, h, taylor, trunc, z
+
+if TYPE_CHECKING:
+    from mslab.integrators.base import Integrator
 
 _CACHE: dict = {}
 
@@ -63,7 +68,7 @@ def _coefficient_order(r: Reading, max_order: int) -> int:
         raise _too_high(r.name, max_order) from None
 
 
-def order(method, max_order: int = 8) -> int:
+def order(method: str | Integrator, max_order: int = 8) -> int:
     """Order p of a method (global error ``O(h^p)``, local error ``O(h^(p+1))``).
 
     Runge-Kutta tableaux (explicit or implicit): Butcher's conditions over all rooted trees
@@ -95,7 +100,7 @@ def order(method, max_order: int = 8) -> int:
     return _coefficient_order(r, int(max_order))
 
 
-def analyse(method, max_order: int = 5) -> Derivation:
+def analyse(method: str | Integrator, max_order: int = 5) -> Derivation:
     """Expand a method's step and the exact solution in powers of h and compare.
 
     Parameters
@@ -126,7 +131,7 @@ def analyse(method, max_order: int = 5) -> Derivation:
     return _CACHE[key]
 
 
-def _first_nonzero(components, n: int) -> int | None:
+def _first_nonzero(components: Sequence[sp.Expr], n: int) -> int | None:
     for k in range(n + 1):
         if any(coeff(c, k) != 0 for c in components):
             return k
@@ -171,7 +176,7 @@ def _analyse(r: Reading, max_order: int) -> Derivation:
     return Derivation(r.name, problem, sp.Matrix(components), p, sp.Matrix(leading))
 
 
-def local_error(method, max_order: int = 5):
+def local_error(method: str | Integrator, max_order: int = 5) -> sp.Expr:
     """Leading term of the local error ``y(t + h) - y_{n+1}`` (see :func:`analyse`).
 
     Forward Euler: ``h**2*f*f'/2`` (the ``y''/2 h^2`` that seed eq. 6 drops).
@@ -181,7 +186,7 @@ def local_error(method, max_order: int = 5):
     return analyse(method, max_order).leading
 
 
-def stability_function(method) -> sp.Expr:
+def stability_function(method: str | Integrator) -> sp.Expr:
     """Amplification factor ``R(z)``, ``y_{n+1} = R(z) y_n`` on ``y' = lambda y`` (seed eq. 29).
 
     ``R(z) = det(I - z A + z 1 b^T) / det(I - z A)`` from the Butcher tableau, explicit or

@@ -11,8 +11,10 @@ float, in floating point with a round-off bound per condition.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from fractions import Fraction
 from numbers import Integral, Real
+from typing import Any
 
 import numpy as np
 import sympy as sp
@@ -21,7 +23,7 @@ from sympy.polys.constructor import construct_domain
 _EPS = float(np.finfo(float).eps)
 
 
-def exact(value) -> sp.Expr | None:
+def exact(value: Any) -> sp.Expr | None:
     """Return the exact sympy number a coefficient stands for, or ``None`` for a float.
 
     Raises
@@ -62,7 +64,7 @@ def exact(value) -> sp.Expr | None:
     return expr
 
 
-def display(value) -> sp.Expr:
+def display(value: Any) -> sp.Expr:
     """Return a coefficient for printed series: exact if given exactly, else the float.
 
     A float becomes a fraction only when that fraction rounds to exactly this float
@@ -92,7 +94,7 @@ class Arithmetic:
         ``True`` when no coefficient is a float.
     """
 
-    def __init__(self, values) -> None:
+    def __init__(self, values: Iterable[Any]) -> None:
         values = list(values)
         parsed = [exact(v) for v in values]
         self.is_exact = all(p is not None for p in parsed)
@@ -111,14 +113,14 @@ class Arithmetic:
         """All coefficients, converted, in the order given to the constructor."""
         return list(self._converted)
 
-    def rational(self, num: int, den: int):
+    def rational(self, num: int, den: int) -> Any:
         """Return the number ``num/den`` in this arithmetic."""
         if self.is_exact:
             return self.domain.from_sympy(sp.Rational(num, den))
         return num / den
 
-    def satisfied(self, value, target, scale: float, n_ops: int) -> bool:
-        """Whether a condition ``value = target`` holds.
+    def satisfied(self, value: Any, target: Any, scale: float, n_ops: int) -> bool:
+        """Tell whether a condition ``value = target`` holds.
 
         Exactly, when the coefficients are exact. For floats: ``|value - target|`` within
         the round-off bound ``2 n_ops eps (scale + |target|)``, where ``scale`` is the sum of

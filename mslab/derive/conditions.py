@@ -22,7 +22,7 @@ floating point with a round-off bound per condition (see ``Arithmetic.satisfied`
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -114,7 +114,7 @@ def _coloured(tree: tuple) -> tuple:
     return ("y", tuple(_coloured(child) for child in tree))
 
 
-def _first_failure(weights: _Weights, families, max_order: int) -> int:
+def _first_failure(weights: _Weights, families: Sequence[Callable[[int], tuple]], max_order: int) -> int:
     for p in range(1, max_order + 2):
         for family in families:
             for tree in family(p):

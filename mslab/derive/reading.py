@@ -11,9 +11,14 @@ of its own ``start`` and ``step``.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from mslab.integrators.base import get_method
+
+if TYPE_CHECKING:
+    from mslab.integrators.base import Integrator
 
 
 @dataclass(frozen=True)
@@ -54,11 +59,11 @@ class Reading:
         return (self.kind, self.name, repr((self.A, self.b, self.drift, self.kick)))
 
 
-def _rows(A) -> tuple:
+def _rows(A: Sequence[Sequence]) -> tuple:
     return tuple(tuple(row) for row in A)
 
 
-def read(method) -> Reading:
+def read(method: str | Integrator) -> Reading:
     """Read a registry name or method object.
 
     Raises

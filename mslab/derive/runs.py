@@ -9,6 +9,9 @@ for a System), for methods that carry no coefficients.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 import sympy as sp
 
@@ -16,6 +19,9 @@ from mslab.derive.coefficients import display
 from mslab.derive.series import A as A_SYM
 from mslab.derive.series import F, compose, h, taylor, trunc, v, x, y
 from mslab.state import State
+
+if TYPE_CHECKING:
+    from mslab.integrators.base import Integrator
 
 
 def _placeholders(values: list[sp.Expr], subs: dict) -> list[sp.Expr]:
@@ -37,8 +43,8 @@ def _explicit(A: list[list[sp.Expr]]) -> bool:
     return all(A[i][j] == 0 for i in range(len(A)) for j in range(i, len(A)))
 
 
-def rk_series(A, b, n: int) -> sp.Expr:
-    """``y_{n+1}`` of the tableau ``A, b`` on ``y' = f(y)`` through ``h^n``."""
+def rk_series(A: Sequence[Sequence[Any]], b: Sequence[Any], n: int) -> sp.Expr:
+    """Return ``y_{n+1}`` of the tableau ``A, b`` on ``y' = f(y)`` through ``h^n``."""
     subs: dict = {}
     Ad = [[display(a) for a in row] for row in A]
     bd = [display(w) for w in b]
@@ -60,8 +66,8 @@ def rk_series(A, b, n: int) -> sp.Expr:
     return _restore(trunc(y1, n), subs)
 
 
-def splitting_series(drift, kick, n: int) -> tuple[sp.Expr, sp.Expr]:
-    """``(x_{n+1}, v_{n+1})`` of the drift-first splitting on ``x'' = a(x)`` through ``h^n``."""
+def splitting_series(drift: Sequence[Any], kick: Sequence[Any], n: int) -> tuple[sp.Expr, sp.Expr]:
+    """Return ``(x_{n+1}, v_{n+1})`` of the drift-first splitting on ``x'' = a(x)`` through ``h^n``."""
     subs: dict = {}
     drift = _placeholders([display(a) for a in drift], subs)
     kick = _placeholders([display(b) for b in kick], subs)
@@ -87,24 +93,24 @@ class _SymbolicSystem:
         self.n = n
         self.counters = _Counters()
 
-    def rhs(self, xs, vs):
+    def rhs(self, xs: np.ndarray, vs: np.ndarray):
         self.counters.n_force += 1
         a = np.empty_like(xs)
         for idx in np.ndindex(xs.shape):
             a[idx] = compose(A_SYM, x, xs[idx], self.n)
         return a, 0
 
-    def acceleration(self, xs, vs):
+    def acceleration(self, xs: np.ndarray, vs: np.ndarray):
         return self.rhs(xs, vs)[0]
 
 
-def _obj(value) -> np.ndarray:
+def _obj(value: Any) -> np.ndarray:
     arr = np.empty((1, 1), dtype=object)
     arr[0, 0] = value
     return arr
 
 
-def run_series(method, n: int, two_step: bool) -> tuple[sp.Expr, ...]:
+def run_series(method: Integrator, n: int, two_step: bool) -> tuple[sp.Expr, ...]:
     """Run the method's own step on ``x'' = a(x)`` through ``h^n``.
 
     Two-step methods are fed the exact ``x(t - h), x(t)`` and return ``(x_{n+1},)``; the

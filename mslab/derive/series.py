@@ -10,6 +10,7 @@ Two model problems, both autonomous and scalar:
 from __future__ import annotations
 
 from math import factorial
+from typing import Any
 
 import sympy as sp
 
@@ -50,19 +51,19 @@ def faithful(expr: sp.Expr) -> sp.Expr:
     return expr.xreplace({f: display(float(f)) for f in floats})
 
 
-def trunc(expr, n: int) -> sp.Expr:
-    """``expr`` expanded in powers of h, terms beyond ``h^n`` dropped."""
+def trunc(expr: Any, n: int) -> sp.Expr:
+    """Return ``expr`` expanded in powers of h, terms beyond ``h^n`` dropped."""
     expr = sp.expand(faithful(sp.sympify(expr)))
     return sp.Add(*[t for t in sp.Add.make_args(expr) if t.as_coeff_exponent(h)[1] <= n])
 
 
-def coeff(expr, k: int) -> sp.Expr:
+def coeff(expr: sp.Expr, k: int) -> sp.Expr:
     """Return the coefficient of ``h^k`` in ``expr``."""
     return sp.expand(expr).coeff(h, k)
 
 
-def compose(derivs: tuple[sp.Symbol, ...], base, arg, n: int) -> sp.Expr:
-    """Taylor polynomial ``g(base + d) = sum_k g^(k) d^k / k!`` with ``d = arg - base = O(h)``."""
+def compose(derivs: tuple[sp.Symbol, ...], base: sp.Expr, arg: sp.Expr, n: int) -> sp.Expr:
+    """Return the Taylor polynomial ``g(base + d) = sum_k g^(k) d^k / k!`` with ``d = arg - base = O(h)``."""
     d = trunc(arg - base, n)
     out, power = sp.Integer(0), sp.Integer(1)
     for k in range(n + 1):
@@ -73,7 +74,7 @@ def compose(derivs: tuple[sp.Symbol, ...], base, arg, n: int) -> sp.Expr:
     return trunc(out, n)
 
 
-def _total_derivative(expr, chain: dict):
+def _total_derivative(expr: sp.Expr, chain: dict):
     """d/dt of an expression in the symbols of ``chain`` (symbol -> its time derivative)."""
     return sp.expand(sum(sp.diff(expr, s) * ds for s, ds in chain.items()))
 
@@ -96,8 +97,8 @@ def derivatives(n: int, problem: str = "first") -> list:
     return out[:n]
 
 
-def taylor(n: int, problem: str = "first", shift=h) -> sp.Expr:
-    """Exact solution at ``t + shift`` as a Taylor series through ``h^n`` (seed eq. 5).
+def taylor(n: int, problem: str = "first", shift: sp.Expr = h) -> sp.Expr:
+    """Return the exact solution at ``t + shift`` as a Taylor series through ``h^n`` (seed eq. 5).
 
     Parameters
     ----------

@@ -15,6 +15,7 @@ Equations I*, 2nd ed. (Springer 1993), sec. II.2 (trees) and II.14 (Nyström met
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from functools import cache
 
 Tree = tuple  # tuple of subtrees (plain) or (colour, tuple of subtrees) (Nyström)
@@ -35,7 +36,7 @@ def density(tree: Tree) -> int:
     return out
 
 
-def _forests(total: int, largest: tuple, trees_of) -> list[tuple]:
+def _forests(total: int, largest: tuple, trees_of: Callable[[int], tuple]) -> list[tuple]:
     """Multisets of trees with ``total`` vertices in all, each at most ``largest``.
 
     A multiset is a tuple sorted in decreasing ``(size, tree)`` order; ``largest`` is the

@@ -12,14 +12,23 @@ energy is (the effect is conservative). Scene files: ``[anchors]`` with ``partic
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from mslab.effects.base import BuildContext, Effect, block_diagonal
 from mslab.effects.registry import register
 from mslab.effects.schema import Key
 
+if TYPE_CHECKING:
+    import numpy.typing as npt
+    import scipy.sparse as sp
 
-def anchor_kernel(x, v, f, particles, points, stiffness):
+    from mslab.scenes.builder import SceneBuilder
+
+
+def anchor_kernel(x: np.ndarray, v: np.ndarray, f: np.ndarray, particles: np.ndarray, points: np.ndarray,
+                  stiffness: np.ndarray) -> float:
     """Compiled-style kernel: ``f[p] -= k (x[p] - a)`` for every anchor; no power."""
     dim = x.shape[1]
     for q in range(particles.shape[0]):
@@ -57,31 +66,37 @@ class Anchors(Effect):
     summary = "zero-length springs pulling chosen particles to fixed points"
     kernel = staticmethod(anchor_kernel)
 
-    def __init__(self, particles, points, stiffness, n_particles: int):
+    def __init__(self, particles: npt.ArrayLike, points: npt.ArrayLike, stiffness: npt.ArrayLike,
+                 n_particles: int):
         self.particles = np.ascontiguousarray(particles, dtype=np.int64).reshape(-1)
         self.points = np.ascontiguousarray(points, dtype=float).reshape(self.particles.size, -1)
         self.stiffness = np.ascontiguousarray(np.broadcast_to(stiffness, self.particles.shape), dtype=float)
         self.n = int(n_particles)
 
-    def force(self, x, v):
+    def force(self, x: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Return ``-k (x_p - a)`` on the anchored particles, zero elsewhere; shape (n_particles, dim)."""
         f = np.zeros_like(x)
         np.add.at(f, self.particles, -self.stiffness[:, None] * (x[self.particles] - self.points))
         return f
 
-    def energy(self, x):
+    def energy(self, x: np.ndarray) -> float:
+        """Return ``sum k |x_p - a|^2 / 2``."""
         d = x[self.particles] - self.points
         return float(0.5 * np.sum(self.stiffness * np.einsum("ij,ij->i", d, d)))
 
-    def jacobians(self, x, v):
+    def jacobians(self, x: np.ndarray, v: np.ndarray) -> tuple[sp.csr_matrix, None]:
+        """Return ``(df/dx, None)`` with ``-k I`` blocks on the anchored particles."""
         dim = x.shape[1]
         blocks = -self.stiffness[:, None, None] * np.eye(dim)[None]
         return block_diagonal(blocks, self.particles, self.n), None
 
     def kernel_params(self) -> tuple:
+        """Return ``(particles, points, stiffness)`` for :func:`anchor_kernel`."""
         return (self.particles, self.points, self.stiffness)
 
     @staticmethod
-    def add_anchors(builder, particles, stiffness, points=None) -> None:
+    def add_anchors(builder: SceneBuilder, particles: npt.ArrayLike, stiffness: npt.ArrayLike,
+                    points: npt.ArrayLike | None = None) -> None:
         """Pull ``particles`` towards ``points`` (default: where they are now) by springs of ``stiffness``.
 
         ``stiffness``: one number, or one per particle; ``points``: one vector per particle.
@@ -89,7 +104,8 @@ class Anchors(Effect):
         builder.add_effect(Anchors, particles=particles, stiffness=stiffness, points=points)
 
     @classmethod
-    def add(cls, builder, values: dict, prefix: str = "") -> None:
+    def add(cls, builder: SceneBuilder, values: dict, prefix: str = "") -> None:
+        """Record the anchors; absent ``points`` become the particles' current positions."""
         if values["points"] is None:  # the particles' positions when the anchors are added
             values = {**values, "points": builder.positions()[values["particles"]]}
         super().add(builder, values, prefix)
@@ -103,6 +119,7 @@ class Anchors(Effect):
 
     @classmethod
     def example(cls, dim: int) -> dict:
+        """Return three anchors for the registry-wide tests."""
         return {"particles": [0, 2, 5], "stiffness": [30.0, 50.0, 80.0],
                 "points": [[0.2] * dim, [-0.5] * dim, [0.0] * dim]}
 

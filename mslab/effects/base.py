@@ -53,6 +53,7 @@ class BuildContext:
 
     @property
     def n_particles(self) -> int:
+        """Number of particles."""
         return self.x.shape[0]
 
 
@@ -163,7 +164,7 @@ class Effect:
 
     @classmethod
     def build(cls, entries: list, ctx: BuildContext) -> list[Effect]:
-        """The effects of a scene from the builder's entries (default: :meth:`create` each)."""
+        """Return the effects of a scene from the builder's entries (default: :meth:`create` each)."""
         made = (cls.create(values, ctx) for values in entries)
         return [e for e in made if e is not None]
 
@@ -179,7 +180,7 @@ class Effect:
 
     @classmethod
     def toml_fragment(cls, values: dict) -> dict:
-        """A scene-file fragment holding one section of ``values`` (for round-trip tests and docs)."""
+        """Return a scene-file fragment holding one section of ``values`` (for round-trip tests and docs)."""
         if cls.many:
             return {cls.section: [{"type": cls.kind, **values}]}
         return {cls.section: dict(values)}
@@ -210,7 +211,7 @@ def pair_blocks(blocks: np.ndarray, i: np.ndarray, j: np.ndarray, n: int) -> sp.
     ri = i[:, None] * dim + np.arange(dim)[None, :]
     rj = j[:, None] * dim + np.arange(dim)[None, :]
 
-    def grid(a, b):
+    def grid(a: np.ndarray, b: np.ndarray):
         return np.repeat(a, dim, axis=1).ravel(), np.tile(b, (1, dim)).ravel()
 
     parts = [(grid(ri, ri), blocks), (grid(rj, rj), blocks),

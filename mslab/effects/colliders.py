@@ -13,12 +13,20 @@ smooth (and differentiable for Newton) at rest. It dissipates ``P = -f_t . v >= 
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from mslab.effects.base import BuildContext, Effect, block_diagonal
 from mslab.effects.registry import register
 from mslab.effects.schema import Key
 from mslab.errors import SceneError
+
+if TYPE_CHECKING:
+    import numpy.typing as npt
+    import scipy.sparse as sp
+
+    from mslab.scenes.builder import SceneBuilder
 
 #: keys every penalty collider shares (after its geometry)
 PENALTY_KEYS = (
@@ -50,21 +58,22 @@ class PenaltyCollider(Effect):
         self.dissipative = self.friction > 0.0
         self.conservative = True
 
-    def _contact(self, x):
+    def _contact(self, x: np.ndarray):
         raise NotImplementedError
 
-    def _active(self, x):
+    def _active(self, x: np.ndarray):
         depth, normal, dnormal = self._contact(x)
         idx = np.flatnonzero(depth > 0.0)
         dn = None if dnormal is None else dnormal[idx]
         return idx, depth[idx], normal[idx], dn
 
-    def _tangent(self, v, n):
+    def _tangent(self, v: np.ndarray, n: np.ndarray):
         vt = v - np.einsum("ij,ij->i", n, v)[:, None] * n
         s = np.sqrt(np.einsum("ij,ij->i", vt, vt) + self.slip_velocity**2)
         return vt, s
 
-    def force_and_power(self, x, v):
+    def force_and_power(self, x: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, float]:
+        """Return the penalty and friction forces and the power friction dissipates, from one pass."""
         f = np.zeros_like(x)
         idx, p, n, _ = self._active(x)
         if idx.size == 0:
@@ -81,18 +90,22 @@ class PenaltyCollider(Effect):
         f[idx] = fi
         return f, power
 
-    def force(self, x, v):
+    def force(self, x: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Return the penalty and friction forces, shape (n_particles, dim)."""
         return self.force_and_power(x, v)[0]
 
-    def power(self, x, v):
+    def power(self, x: np.ndarray, v: np.ndarray) -> float:
+        """Return the power friction dissipates, ``-f_t . v >= 0``."""
         return self.force_and_power(x, v)[1]
 
-    def energy(self, x):
+    def energy(self, x: np.ndarray) -> float:
+        """Return the penalty energy ``sum k p^2 / 2`` over penetrating particles."""
         depth = self._contact(x)[0]
         p = depth[depth > 0.0]
         return float(0.5 * self.stiffness * np.sum(p * p))
 
-    def jacobians(self, x, v):
+    def jacobians(self, x: np.ndarray, v: np.ndarray) -> tuple[sp.csr_matrix, sp.csr_matrix | None]:
+        """Return ``(df/dx, df/dv)`` of the penalty and friction forces (df/dv None without friction)."""
         nparticles, dim = x.shape
         idx, p, n, dn = self._active(x)
         k = self.stiffness
@@ -144,38 +157,41 @@ class Plane(PenaltyCollider):
     builder_methods = ("add_plane",)
     summary = "penalty half-space with regularised Coulomb friction"
 
-    def __init__(self, normal, offset: float, stiffness: float, friction: float = 0.0,
+    def __init__(self, normal: npt.ArrayLike, offset: float, stiffness: float, friction: float = 0.0,
                  slip_velocity: float = 1e-3):
         super().__init__(stiffness, friction, slip_velocity)
         normal = np.asarray(normal, dtype=float)
         self.normal = normal / np.linalg.norm(normal)
         self.offset = float(offset)
 
-    def _contact(self, x):
+    def _contact(self, x: np.ndarray):
         depth = self.offset - x @ self.normal
         normal = np.broadcast_to(self.normal, x.shape)
         return depth, normal, None
 
     @staticmethod
-    def add_plane(builder, normal, offset: float, stiffness: float, friction: float = 0.0,
-                  slip_velocity: float = 1e-3) -> None:
-        """Penalty half-space ``normal . x >= offset`` (``slip_velocity``: friction regularisation)."""
+    def add_plane(builder: SceneBuilder, normal: npt.ArrayLike, offset: float, stiffness: float,
+                  friction: float = 0.0, slip_velocity: float = 1e-3) -> None:
+        """Add a penalty half-space ``normal . x >= offset`` (``slip_velocity``: friction regularisation)."""
         builder.add_effect(Plane, normal=normal, offset=offset, stiffness=stiffness, friction=friction,
                            slip_velocity=slip_velocity)
 
     @classmethod
-    def add(cls, builder, values: dict, prefix: str = "") -> None:
+    def add(cls, builder: SceneBuilder, values: dict, prefix: str = "") -> None:
+        """Record the plane after checking that its normal is not zero."""
         if not np.any(values["normal"]):
             raise SceneError(f"{prefix}normal", "must not be the zero vector")
         super().add(builder, values, prefix)
 
     @classmethod
     def create(cls, values: dict, ctx: BuildContext) -> Plane:
+        """Return the plane of the checked values."""
         return cls(values["normal"], values["offset"], values["stiffness"], values["friction"],
                    values["slip_velocity"])
 
     @classmethod
     def example(cls, dim: int) -> dict:
+        """Return a tilted plane with friction for the registry-wide tests."""
         normal = [0.0] * dim
         normal[-1] = 1.0
         normal[0] = 0.3
@@ -204,13 +220,13 @@ class Sphere(PenaltyCollider):
     builder_methods = ("add_sphere",)
     summary = "penalty ball (disc in 2D) with regularised Coulomb friction"
 
-    def __init__(self, center, radius: float, stiffness: float, friction: float = 0.0,
+    def __init__(self, center: npt.ArrayLike, radius: float, stiffness: float, friction: float = 0.0,
                  slip_velocity: float = 1e-3):
         super().__init__(stiffness, friction, slip_velocity)
         self.center = np.asarray(center, dtype=float)
         self.radius = float(radius)
 
-    def _contact(self, x):
+    def _contact(self, x: np.ndarray):
         y = x - self.center
         r = np.sqrt(np.einsum("ij,ij->i", y, y))
         safe = np.where(r > 0.0, r, 1.0)
@@ -221,19 +237,21 @@ class Sphere(PenaltyCollider):
         return self.radius - r, normal, dnormal
 
     @staticmethod
-    def add_sphere(builder, center, radius: float, stiffness: float, friction: float = 0.0,
-                   slip_velocity: float = 1e-3) -> None:
-        """Penalty sphere (disc in 2D); ``slip_velocity``: friction regularisation."""
+    def add_sphere(builder: SceneBuilder, center: npt.ArrayLike, radius: float, stiffness: float,
+                   friction: float = 0.0, slip_velocity: float = 1e-3) -> None:
+        """Add a penalty sphere (disc in 2D); ``slip_velocity``: friction regularisation."""
         builder.add_effect(Sphere, center=center, radius=radius, stiffness=stiffness, friction=friction,
                            slip_velocity=slip_velocity)
 
     @classmethod
     def create(cls, values: dict, ctx: BuildContext) -> Sphere:
+        """Return the sphere of the checked values."""
         return cls(values["center"], values["radius"], values["stiffness"], values["friction"],
                    values["slip_velocity"])
 
     @classmethod
     def example(cls, dim: int) -> dict:
+        """Return a ball with friction for the registry-wide tests."""
         return {"center": [0.1] * dim, "radius": 1.0, "stiffness": 300.0, "friction": 0.5,
                 "slip_velocity": 0.2}
 

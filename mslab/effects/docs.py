@@ -36,7 +36,7 @@ def key_table(cls: type[Effect]) -> str:
 
 
 def effect_tables() -> str:
-    """The generated block: an overview of the effect sections, then each one's keys."""
+    """Return the generated block: an overview of the effect sections, then each one's keys."""
     classes = [cls for cls in effect_classes() if cls.section is not None]
     out = [BEGIN, "", "| section | effect | builder method | what it adds |", "|---|---|---|---|"]
     for cls in classes:

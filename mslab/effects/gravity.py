@@ -7,27 +7,35 @@ vector gives the acceleration itself.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from mslab.effects.base import BuildContext, Effect
 from mslab.effects.registry import register
 from mslab.effects.schema import Key
 
+if TYPE_CHECKING:
+    import numpy.typing as npt
+    import scipy.sparse as sp
+
+    from mslab.scenes.builder import SceneBuilder
+
 
 def down(dim: int) -> np.ndarray:
-    """The unit vector pointing down: -y in 2D, -z in 3D, -x in 1D."""
+    """Return the unit vector pointing down: -y in 2D, -z in 3D, -x in 1D."""
     e = np.zeros(dim)
     e[dim - 1] = -1.0
     return e
 
 
-def gravity_vector(g, dim: int) -> np.ndarray:
-    """A gravity vector from a number (strength, pointing :func:`down`) or a vector."""
+def gravity_vector(g: npt.ArrayLike, dim: int) -> np.ndarray:
+    """Return a gravity vector from a number (strength, pointing :func:`down`) or a vector."""
     arr = np.asarray(g, dtype=float)
     return float(arr) * down(dim) if arr.ndim == 0 else arr.reshape(dim)
 
 
-def gravity_kernel(x, v, f, f_gravity):
+def gravity_kernel(x: np.ndarray, v: np.ndarray, f: np.ndarray, f_gravity: np.ndarray) -> float:
     """Compiled-style kernel: ``f += m g`` (``f_gravity`` precomputed, (n, dim)); no power."""
     n, dim = f.shape
     for p in range(n):
@@ -62,34 +70,40 @@ class Gravity(Effect):
     summary = "uniform gravity `f = m g` on every particle"
     kernel = staticmethod(gravity_kernel)
 
-    def __init__(self, g, mass: np.ndarray):
+    def __init__(self, g: npt.ArrayLike, mass: np.ndarray):
         self.g = np.asarray(g, dtype=float)
         self.mass = np.asarray(mass, dtype=float)
         self._f = np.ascontiguousarray(self.mass[:, None] * self.g[None, :])
 
-    def force(self, x, v):
+    def force(self, x: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Return ``m_i g`` for every particle, shape (n_particles, dim)."""
         return self._f.copy()
 
-    def energy(self, x):
+    def energy(self, x: np.ndarray) -> float:
+        """Return the potential energy ``-sum_i m_i g . x_i``."""
         return float(-np.sum(self._f * x))
 
-    def jacobians(self, x, v):
+    def jacobians(self, x: np.ndarray, v: np.ndarray) -> tuple[sp.spmatrix | None, sp.spmatrix | None]:
+        """Return ``(None, None)``: a constant force has zero Jacobians."""
         return None, None
 
     def kernel_params(self) -> tuple:
+        """Return ``(m g,)``, shape (n_particles, dim), for :func:`gravity_kernel`."""
         return (self._f,)
 
     @staticmethod
-    def add_gravity(builder, g) -> None:
-        """Uniform gravity: a vector (``[0, -9.81]``) or a number pulling down (-y in 2D, -z in 3D)."""
+    def add_gravity(builder: SceneBuilder, g: npt.ArrayLike) -> None:
+        """Add uniform gravity: a vector (``[0, -9.81]``) or a number pulling down (-y in 2D, -z in 3D)."""
         builder.add_effect(Gravity, g=g)
 
     @classmethod
     def create(cls, values: dict, ctx: BuildContext) -> Gravity:
+        """Return the gravity of the checked values on the scene's masses."""
         return cls(gravity_vector(values["g"], ctx.dim), ctx.mass)
 
     @classmethod
     def example(cls, dim: int) -> dict:
+        """Return ``g = 9.81`` (pulling down) for the registry-wide tests."""
         return {"g": 9.81}
 
     def __repr__(self):

@@ -55,13 +55,13 @@ def discover() -> None:
 
 
 def effect_classes() -> list[type[Effect]]:
-    """Registered effect classes in System order (``order``, then registration order)."""
+    """Return the registered effect classes in System order (``order``, then registration order)."""
     discover()
     return sorted(_registry.values(), key=lambda cls: cls.order)
 
 
 def get_effect(name: str) -> type[Effect]:
-    """The registered effect class called ``name`` (KeyError when unknown)."""
+    """Return the registered effect class called ``name`` (KeyError when unknown)."""
     discover()
     return _registry[name]
 

@@ -89,17 +89,18 @@ class Key:
 
     @property
     def required(self) -> bool:
+        """Whether the key must be given (no default)."""
         return self.default is REQUIRED
 
     def type_text(self) -> str:
-        """The value type in words (docs)."""
+        """Return the value type in words (docs)."""
         text = TYPES[self.type]
         if self.per is not None and self.type in ("numbers", "vectors"):
             text += f" (one per entry of `{self.per}`)"
         return text
 
     def range_text(self) -> str:
-        """The allowed range in words (docs): ``> 0``, ``>= 0``, the choices."""
+        """Return the allowed range in words (docs): ``> 0``, ``>= 0``, the choices."""
         if self.choices:
             return ", ".join(f'`"{c}"`' for c in self.choices)
         if self.low is not None:
@@ -107,7 +108,7 @@ class Key:
         return ""
 
     def default_text(self) -> str:
-        """The default in words (docs)."""
+        """Return the default in words (docs)."""
         if self.default_doc is not None:
             return self.default_doc
         if self.required:
@@ -127,8 +128,8 @@ def suggest(word: str, valid: Iterable[str]) -> str:
     return f" (did you mean '{close[0]}'?)" if close else ""
 
 
-def describe(value) -> str:
-    """A raw value in words, for error messages: ``the string '100'``, ``a list of 3``."""
+def describe(value: Any) -> str:
+    """Describe a raw value in words, for error messages: ``the string '100'``, ``a list of 3``."""
     if isinstance(value, bool | np.bool_):
         return f"the boolean {str(bool(value)).lower()}"
     if isinstance(value, str):
@@ -142,8 +143,8 @@ def describe(value) -> str:
     return type(value).__name__
 
 
-def _plain(value):
-    """numpy arrays and scalars as lists and Python numbers (TOML-like data)."""
+def _plain(value: Any):
+    """Turn numpy arrays and scalars into lists and Python numbers (TOML-like data)."""
     if isinstance(value, np.ndarray):
         return value.tolist()
     if isinstance(value, tuple):
@@ -153,13 +154,13 @@ def _plain(value):
     return value
 
 
-def _is_number(value) -> bool:
+def _is_number(value: Any) -> bool:
     numeric = isinstance(value, int | float | np.integer | np.floating)
     return numeric and not isinstance(value, bool | np.bool_)
 
 
-def number(value, name: str, low: float | None = None, strict: bool = False) -> float:
-    """A finite number (bounded below by ``low``), or SceneError naming ``name``."""
+def number(value: Any, name: str, low: float | None = None, strict: bool = False) -> float:
+    """Return a finite number (bounded below by ``low``), or raise SceneError naming ``name``."""
     if not _is_number(value):
         raise SceneError(name, f"must be a number, got {describe(value)}")
     value = float(value)
@@ -170,8 +171,8 @@ def number(value, name: str, low: float | None = None, strict: bool = False) -> 
     return value
 
 
-def integer(value, name: str, low: int | None = None) -> int:
-    """A whole number (>= ``low``), or SceneError naming ``name``."""
+def integer(value: Any, name: str, low: int | None = None) -> int:
+    """Return a whole number (>= ``low``), or raise SceneError naming ``name``."""
     if isinstance(value, bool | np.bool_) or not isinstance(value, int | np.integer):
         raise SceneError(name, f"must be a whole number, got {describe(value)}")
     if low is not None and value < low:
@@ -179,8 +180,8 @@ def integer(value, name: str, low: int | None = None) -> int:
     return int(value)
 
 
-def string(value, name: str, choices: Iterable[str] | None = None) -> str:
-    """A string (one of ``choices``), or SceneError naming ``name`` with the nearest choice."""
+def string(value: Any, name: str, choices: Iterable[str] | None = None) -> str:
+    """Return a string (one of ``choices``), or raise SceneError naming ``name`` with the nearest choice."""
     if not isinstance(value, str):
         raise SceneError(name, f"must be a string, got {describe(value)}")
     if choices is not None:
@@ -191,16 +192,16 @@ def string(value, name: str, choices: Iterable[str] | None = None) -> str:
     return value
 
 
-def vector(value, name: str, dim: int) -> np.ndarray:
-    """A list of ``dim`` finite numbers."""
+def vector(value: Any, name: str, dim: int) -> np.ndarray:
+    """Return ``value`` checked as a list of ``dim`` finite numbers."""
     value = _plain(value)
     if not isinstance(value, list) or len(value) != dim:
         raise SceneError(name, f"must be a list of {dim} numbers, got {describe(value)}")
     return np.array([number(c, f"{name}[{i}]") for i, c in enumerate(value)])
 
 
-def vectors(value, name: str, dim: int, n: int | None = None) -> np.ndarray:
-    """A non-empty list of ``dim``-vectors (``n`` of them when given), shape (m, dim)."""
+def vectors(value: Any, name: str, dim: int, n: int | None = None) -> np.ndarray:
+    """Return ``value`` checked as a non-empty list of ``dim``-vectors (``n`` when given), shape (m, dim)."""
     value = _plain(value)
     if not isinstance(value, list) or not value:
         raise SceneError(name, f"must be a non-empty list of {dim}-vectors, got {describe(value)}")
@@ -209,8 +210,8 @@ def vectors(value, name: str, dim: int, n: int | None = None) -> np.ndarray:
     return np.array([vector(p, f"{name}[{i}]", dim) for i, p in enumerate(value)]).reshape(-1, dim)
 
 
-def numbers(value, name: str, n: int, low: float | None = None, strict: bool = False) -> np.ndarray:
-    """One number for all, or a list of ``n`` numbers; shape (n,)."""
+def numbers(value: Any, name: str, n: int, low: float | None = None, strict: bool = False) -> np.ndarray:
+    """Return ``value`` checked as one number for all, or a list of ``n`` numbers; shape (n,)."""
     value = _plain(value)
     if isinstance(value, list):
         if len(value) != n:
@@ -219,8 +220,8 @@ def numbers(value, name: str, n: int, low: float | None = None, strict: bool = F
     return np.full(n, number(value, name, low, strict))
 
 
-def index(value, name: str, n: int) -> int:
-    """A particle index in ``0..n-1``."""
+def index(value: Any, name: str, n: int) -> int:
+    """Return ``value`` checked as a particle index in ``0..n-1``."""
     if isinstance(value, bool | np.bool_) or not isinstance(value, int | np.integer):
         raise SceneError(name, f"particle index must be a whole number, got {describe(value)}")
     if not 0 <= value < n:
@@ -228,16 +229,16 @@ def index(value, name: str, n: int) -> int:
     return int(value)
 
 
-def indices(value, name: str, n: int) -> np.ndarray:
-    """A non-empty list of particle indices, int64 array."""
+def indices(value: Any, name: str, n: int) -> np.ndarray:
+    """Return ``value`` checked as a non-empty list of particle indices, int64 array."""
     value = _plain(value)
     if not isinstance(value, list) or not value:
         raise SceneError(name, f"must be a non-empty list of particle indices, got {describe(value)}")
     return np.array([index(k, f"{name}[{q}]", n) for q, k in enumerate(value)], dtype=np.int64)
 
 
-def pairs(value, name: str, n: int) -> np.ndarray:
-    """A non-empty list of ``[i, j]`` index pairs with ``i != j``, int64 array (m, 2)."""
+def pairs(value: Any, name: str, n: int) -> np.ndarray:
+    """Return ``value`` checked as a non-empty list of ``[i, j]`` pairs, ``i != j``; int64 array (m, 2)."""
     if isinstance(value, np.ndarray) and value.ndim == 2 and value.shape[1] == 2 \
             and np.issubdtype(value.dtype, np.integer) and value.shape[0] > 0:
         out = value.astype(np.int64)  # fast path for large generated arrays
@@ -268,8 +269,8 @@ def check_keys(table: Mapping, valid: Iterable[str], prefix: str = "", what: str
                              f"valid {what}s: {', '.join(valid)}")
 
 
-def check_value(key: Key, value, name: str, dim: int, n: int, sizes: Mapping[str, int]) -> Any:
-    """One checked value of ``key`` (``name`` is its full dotted name in messages)."""
+def check_value(key: Key, value: Any, name: str, dim: int, n: int, sizes: Mapping[str, int]) -> Any:
+    """Return one checked value of ``key`` (``name`` is its full dotted name in messages)."""
     t = key.type
     if t == "number":
         return number(value, name, key.low, key.strict)

@@ -7,6 +7,8 @@ recorded by :mod:`mslab.effects.spring_table` (duplicates, rest lengths, labels)
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -14,6 +16,12 @@ from mslab.effects.base import BuildContext, Effect
 from mslab.effects.registry import register
 from mslab.effects.schema import Key, check_keys
 from mslab.effects.spring_table import SPRING_KINDS, SpringTable
+
+if TYPE_CHECKING:
+    import numpy.typing as npt
+
+    from mslab.scenes.bodies import Body
+    from mslab.scenes.builder import SceneBuilder
 
 
 def scatter_pairs(f: np.ndarray, i: np.ndarray, j: np.ndarray, n: int) -> np.ndarray:
@@ -24,7 +32,9 @@ def scatter_pairs(f: np.ndarray, i: np.ndarray, j: np.ndarray, n: int) -> np.nda
     return out
 
 
-def spring_kernel(x, v, f, i, j, stiffness, rest_length, damping, damped):
+def spring_kernel(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: np.ndarray,
+                  stiffness: np.ndarray, rest_length: np.ndarray, damping: np.ndarray,
+                  damped: int) -> float:
     """Add the spring forces to ``f`` (n_particles, dim) in place; return the dissipated power.
 
     A loop over springs: the pair force ``f_q`` goes to ``+f[i]`` and ``-f[j]``;
@@ -144,7 +154,8 @@ class Springs(Effect):
     dissipative = False
     velocity_dependent = False
 
-    def __init__(self, springs, stiffness, rest_length, damping, n_particles: int, kind=None):
+    def __init__(self, springs: npt.ArrayLike, stiffness: npt.ArrayLike, rest_length: npt.ArrayLike,
+                 damping: npt.ArrayLike, n_particles: int, kind: npt.ArrayLike | None = None):
         self.springs = np.asarray(springs, dtype=np.int64).reshape(-1, 2)
         self.i = np.ascontiguousarray(self.springs[:, 0])
         self.j = np.ascontiguousarray(self.springs[:, 1])
@@ -160,14 +171,14 @@ class Springs(Effect):
         self._csr = None  # Jacobian sparsity pattern, built on first use (see _assemble)
 
     # -- physics ---------------------------------------------------------------------------------
-    def _geometry(self, x):
+    def _geometry(self, x: np.ndarray):
         d = x[self.i] - x[self.j]
         length = np.sqrt(np.einsum("ij,ij->i", d, d))
         safe = np.where(length > 0.0, length, 1.0)
         u = np.where((length > 0.0)[:, None], d / safe[:, None], 0.0)
         return d, length, u
 
-    def _pair_force(self, x, v):
+    def _pair_force(self, x: np.ndarray, v: np.ndarray):
         d, length, u = self._geometry(x)
         f = -self.stiffness[:, None] * (d - self.rest_length[:, None] * u)
         if not self.dissipative:
@@ -176,26 +187,31 @@ class Springs(Effect):
         f -= (self.damping * rate)[:, None] * u
         return f, float(np.sum(self.damping * rate * rate))
 
-    def force(self, x, v):
+    def force(self, x: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Return the spring forces, shape (n_particles, dim)."""
         f, _ = self._pair_force(x, v)
         return scatter_pairs(f, self.i, self.j, self.n)
 
-    def force_and_power(self, x, v):
+    def force_and_power(self, x: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, float]:
+        """Return the forces and the power dissipated by the damping, from one pass."""
         f, p = self._pair_force(x, v)
         return scatter_pairs(f, self.i, self.j, self.n), p
 
-    def power(self, x, v):
+    def power(self, x: np.ndarray, v: np.ndarray) -> float:
+        """Return the power dissipated by the damping along the springs, ``sum_q c (u . Δv)^2``."""
         return self._pair_force(x, v)[1]
 
-    def energy(self, x):
+    def energy(self, x: np.ndarray) -> float:
+        """Return the elastic energy ``sum_q k (l - L)^2 / 2``."""
         _, length, _ = self._geometry(x)
         return float(0.5 * np.sum(self.stiffness * (length - self.rest_length) ** 2))
 
-    def lengths(self, x) -> np.ndarray:
-        """Current spring lengths, shape (n_springs,)."""
+    def lengths(self, x: np.ndarray) -> np.ndarray:
+        """Return the current spring lengths, shape (n_springs,)."""
         return self._geometry(x)[1]
 
-    def jacobians(self, x, v):
+    def jacobians(self, x: np.ndarray, v: np.ndarray) -> tuple[sp.csr_matrix, sp.csr_matrix | None]:
+        """Return ``(df/dx, df/dv)`` from the blocks of the class docstring (df/dv None undamped)."""
         d, length, u = self._geometry(x)
         dim = x.shape[1]
         eye = np.eye(dim)[None]
@@ -215,7 +231,7 @@ class Springs(Effect):
         return self._assemble(bx), dfdv
 
     def _assemble(self, blocks: np.ndarray) -> sp.csr_matrix:
-        """``mslab.effects.base.pair_blocks(blocks, i, j, n)`` into a CSR pattern computed once and reused.
+        """Assemble like ``mslab.effects.base.pair_blocks(blocks, i, j, n)``, into a CSR pattern reused.
 
         The sparsity pattern of a spring Jacobian never changes, so the sorting of a
         COO -> CSR conversion is done on the first call only: later calls sum the block
@@ -236,7 +252,8 @@ class Springs(Effect):
         ri = self.i[:, None] * dim + np.arange(dim)[None, :]
         rj = self.j[:, None] * dim + np.arange(dim)[None, :]
 
-        def grid(a, b):  # (row, col) of each entry of the blocks, in blocks.ravel() order
+        # (row, col) of each entry of the blocks, in blocks.ravel() order
+        def grid(a: np.ndarray, b: np.ndarray):
             return np.repeat(a, dim, axis=1).ravel(), np.tile(b, (1, dim)).ravel()
 
         # +B at (i, i) and (j, j), then -B at (i, j) and (j, i), as pair_blocks
@@ -248,13 +265,15 @@ class Springs(Effect):
         return slot, (keys % size).astype(np.int32), indptr
 
     def kernel_params(self) -> tuple:
+        """Return ``(i, j, stiffness, rest_length, damping, damped)`` for :func:`spring_kernel`."""
         return (self.i, self.j, self.stiffness, self.rest_length, self.damping, int(self.dissipative))
 
     # -- scene description -----------------------------------------------------------------------
     @staticmethod
-    def add_springs(builder, pairs, stiffness: float, rest_length=None, damping: float = 0.0,
+    def add_springs(builder: SceneBuilder, pairs: npt.ArrayLike, stiffness: float,
+                    rest_length: npt.ArrayLike | None = None, damping: float = 0.0,
                     kind: str = "structural", duplicates: str = "error") -> np.ndarray:
-        """Springs for every ``(i, j)`` in ``pairs`` with the same parameters; returns their indices.
+        """Add springs for every ``(i, j)`` in ``pairs`` with the same parameters; return their indices.
 
         ``rest_length``: one number, one per pair, or None (each spring's current length).
         A pair joined twice (in either order) is an error unless ``duplicates="merge"``,
@@ -268,9 +287,9 @@ class Springs(Effect):
         return Springs._table(builder).add(values, builder.positions(), kind, "springs.", explicit=False)
 
     @staticmethod
-    def add_spring(builder, i: int, j: int, stiffness: float, rest_length: float | None = None,
+    def add_spring(builder: SceneBuilder, i: int, j: int, stiffness: float, rest_length: float | None = None,
                    damping: float = 0.0, kind: str = "structural", duplicates: str = "error") -> int:
-        """Spring between particles i and j; ``rest_length=None`` takes the current length.
+        """Add a spring between particles i and j; ``rest_length=None`` takes the current length.
 
         Returns the spring's index (see :meth:`add_springs` for ``duplicates``).
         """
@@ -278,15 +297,15 @@ class Springs(Effect):
         return int(added[0])
 
     @staticmethod
-    def _table(builder) -> SpringTable:
+    def _table(builder: SceneBuilder) -> SpringTable:
         entries = builder.entries(Springs)
         if not entries:
             entries.append(SpringTable())
         return entries[0]
 
     @classmethod
-    def from_toml(cls, builder, raw, prefix: str, body=None) -> None:
-        """``[springs.<kind>]`` tables of one body: pairs within the body, or from its generator."""
+    def from_toml(cls, builder: SceneBuilder, raw: dict, prefix: str, body: Body | None = None) -> None:
+        """Read the ``[springs.<kind>]`` tables of one body: pairs within the body, or from its generator."""
         table = builder.check_table(raw, prefix.rstrip("."))
         check_keys(table, cls.kinds, prefix, "spring kind")
         for kind, sub in table.items():
@@ -307,6 +326,7 @@ class Springs(Effect):
 
     @classmethod
     def build(cls, entries: list, ctx: BuildContext) -> list[Effect]:
+        """Return one :class:`Springs` holding every spring of the scene (none when there are none)."""
         table = entries[0]
         if not table.i:
             return []
@@ -316,11 +336,13 @@ class Springs(Effect):
 
     @classmethod
     def example(cls, dim: int) -> dict:
+        """Return springs among 6 particles for the registry-wide tests."""
         return {"pairs": [[0, 1], [1, 2], [2, 3], [3, 4], [4, 5], [0, 5], [1, 4]], "stiffness": 40.0,
                 "damping": 0.5, "rest_length": 0.7}
 
     @classmethod
     def toml_fragment(cls, values: dict) -> dict:
+        """Return ``values`` as a ``[springs.structural]`` table."""
         return {"springs": {"structural": values}}
 
     def __repr__(self):

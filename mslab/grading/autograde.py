@@ -17,9 +17,11 @@ import os
 import secrets
 import signal
 import threading
+from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from mslab.grading.dispatch import RUNNER_SLACK, STOP, clean_stale_folders, run_runner
 from mslab.grading.isolation import DESCRIPTION, detect
@@ -27,10 +29,15 @@ from mslab.grading.layout import HIDDEN, Exercise, expand_submissions, find_exer
 from mslab.grading.remote import set_not_dumpable
 from mslab.grading.report import Journal, fingerprint, format_report, gradebook_rows, item_key, printable
 
+if TYPE_CHECKING:
+    from types import FrameType
+
 __all__ = ["ExerciseResult", "SubmissionResult", "TestResult", "format_report", "grade", "gradebook_rows"]
 
 @dataclass
 class TestResult:
+    """The outcome of one test: points earned of ``max_points``, and why it failed."""
+
     test: str
     points: float
     max_points: float
@@ -40,21 +47,27 @@ class TestResult:
 
 @dataclass
 class ExerciseResult:
+    """The tests of one exercise of one submission, and the errors that kept tests from running."""
+
     name: str
     tests: list[TestResult] = field(default_factory=list)
     errors: list[str] = field(default_factory=list)
 
     @property
     def total(self) -> float:
+        """Points earned over all tests."""
         return float(sum(t.points for t in self.tests))
 
     @property
     def max_points(self) -> float:
+        """Points all tests are worth."""
         return float(sum(t.max_points for t in self.tests))
 
 
 @dataclass
 class SubmissionResult:
+    """The graded exercises of one student's submission, and the isolation they ran under."""
+
     submission: str
     student: str
     exercises: list[ExerciseResult] = field(default_factory=list)
@@ -62,13 +75,16 @@ class SubmissionResult:
 
     @property
     def total(self) -> float:
+        """Points earned over all exercises."""
         return float(sum(e.total for e in self.exercises))
 
     @property
     def max_points(self) -> float:
+        """Points all exercises are worth."""
         return float(sum(e.max_points for e in self.exercises))
 
     def to_dict(self) -> dict:
+        """Return the result as plain data (for JSON)."""
         return {
             "student": self.student, "submission": self.submission, "isolation": self.isolation,
             "total": self.total, "max": self.max_points,
@@ -86,7 +102,7 @@ def _interrupts():
         yield
         return
 
-    def handler(signum, frame):
+    def handler(signum: int, frame: FrameType | None):
         raise KeyboardInterrupt
 
     old = signal.signal(signal.SIGTERM, handler)
@@ -97,7 +113,7 @@ def _interrupts():
 
 
 def _reason(test: str, entry: dict) -> str:
-    """The reason shown for a failed test; for a hidden test, its kind only (never its text)."""
+    """Return the reason shown for a failed test; for a hidden test, its kind only (never its text)."""
     text = str(entry.get("reason", "failed"))[:200]
     if not HIDDEN.match(test.split("::")[0]):
         return text
@@ -129,7 +145,8 @@ def _score(exercise: Exercise, outcome: dict, errors: list[str], reason_all: str
     return result
 
 
-def _run_items(items: list[dict], timeout: float, memory_mb: int, mode: str, on_item) -> tuple[set, str]:
+def _run_items(items: list[dict], timeout: float, memory_mb: int, mode: str,
+               on_item: Callable[[str, dict], None]) -> tuple[set, str]:
     """Run items in one runner: ``(keys finished, why some are missing)``."""
     job = {"nonce": secrets.token_hex(16), "timeout": timeout, "memory_mb": memory_mb, "isolation": mode,
            "import_timeout": max(30.0, timeout), "items": items}
@@ -137,7 +154,8 @@ def _run_items(items: list[dict], timeout: float, memory_mb: int, mode: str, on_
     return run_runner(job, wall, on_item)
 
 
-def _run_chunk(items: list[dict], timeout: float, memory_mb: int, mode: str, on_item) -> None:
+def _run_chunk(items: list[dict], timeout: float, memory_mb: int, mode: str,
+               on_item: Callable[[str, dict | None, str], None]) -> None:
     """Run a chunk of items; ``on_item(key, outcome or None, why)`` for each.
 
     The runner grades items in order and reports each as it finishes. If it dies or
@@ -160,10 +178,10 @@ def _run_chunk(items: list[dict], timeout: float, memory_mb: int, mode: str, on_
         pending = rest[1:]
 
 
-def grade(paths, source: str | Path, jobs: int | None = None, timeout: float = 10.0,
+def grade(paths: Iterable[str | Path], source: str | Path, jobs: int | None = None, timeout: float = 10.0,
           memory_mb: int = 1024, only: list[str] | None = None, isolation: str = "auto",
           require_isolation: bool = False, journal: str | Path | None = None, resume: bool = False,
-          progress=None) -> list[SubmissionResult]:
+          progress: Callable[[int, int], None] | None = None) -> list[SubmissionResult]:
     """Grade submissions (folders of exercise folders, or classes of such folders).
 
     Parameters
@@ -226,7 +244,7 @@ def grade(paths, source: str | Path, jobs: int | None = None, timeout: float = 1
     lock = threading.Lock()
     total = len(items)
 
-    def on_item(key: str, entry, why: str) -> None:
+    def on_item(key: str, entry: dict | None, why: str) -> None:
         with lock:
             if key in outcomes:
                 return

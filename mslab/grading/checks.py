@@ -7,12 +7,21 @@ helpers accept both and fail with one clear line (shape, dtype, worst error).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
 from mslab.grading.remote import StudentError
 
+if TYPE_CHECKING:
+    import numpy.typing as npt
 
-def check_shape(out, shape: tuple, what: str = "result") -> None:
+    from mslab.grading.problems import Problem
+    from mslab.state import State
+
+
+def check_shape(out: Any, shape: tuple, what: str = "result") -> None:
     """``out`` must be a floating-point ndarray of the given shape."""
     if not isinstance(out, np.ndarray):
         raise AssertionError(f"{what}: expected a numpy array of shape {shape}, got {type(out).__name__}")
@@ -22,7 +31,8 @@ def check_shape(out, shape: tuple, what: str = "result") -> None:
         raise AssertionError(f"{what}: dtype {out.dtype}, expected a floating-point array")
 
 
-def check_array(out, expected, rtol: float = 1e-10, atol: float = 1e-12, what: str = "result") -> None:
+def check_array(out: Any, expected: npt.ArrayLike, rtol: float = 1e-10, atol: float = 1e-12,
+                what: str = "result") -> None:
     """``out`` must be a float ndarray of the expected shape, finite, and close to ``expected``."""
     expected = np.asarray(expected)
     if not isinstance(out, np.ndarray):
@@ -43,7 +53,7 @@ def check_array(out, expected, rtol: float = 1e-10, atol: float = 1e-12, what: s
                              f"allowed {bound.flat[k]:.3g})")
 
 
-def check_scalar(out, expected: float, rtol: float = 1e-10, atol: float = 1e-12,
+def check_scalar(out: Any, expected: float, rtol: float = 1e-10, atol: float = 1e-12,
                  what: str = "result") -> None:
     """``out`` must be a real number close to ``expected``."""
     if isinstance(out, np.ndarray) and out.shape == ():
@@ -55,7 +65,7 @@ def check_scalar(out, expected: float, rtol: float = 1e-10, atol: float = 1e-12,
 
 
 def raised(err: BaseException, exc_type: type[BaseException]) -> bool:
-    """Did the student's code raise ``exc_type`` (locally or in the sandbox)?
+    """Tell whether the student's code raised ``exc_type`` (locally or in the sandbox).
 
     ``NotImplementedError`` (the untouched release) never counts, though it is a RuntimeError.
     """
@@ -64,7 +74,7 @@ def raised(err: BaseException, exc_type: type[BaseException]) -> bool:
     return isinstance(err, exc_type) and not isinstance(err, NotImplementedError)
 
 
-def check_raises(exc_type: type[BaseException], func, *args, **kwargs) -> None:
+def check_raises(exc_type: type[BaseException], func: Callable, *args, **kwargs) -> None:
     """``func(*args, **kwargs)`` must raise ``exc_type`` (not NotImplementedError)."""
     try:
         func(*args, **kwargs)
@@ -75,13 +85,14 @@ def check_raises(exc_type: type[BaseException], func, *args, **kwargs) -> None:
     raise AssertionError(f"expected {exc_type.__name__}, nothing was raised")
 
 
-def fitted_order(dts, errors) -> float:
-    """Slope of log(error) over log(dt): the observed order of convergence."""
+def fitted_order(dts: npt.ArrayLike, errors: npt.ArrayLike) -> float:
+    """Return the slope of log(error) over log(dt): the observed order of convergence."""
     return float(np.polyfit(np.log(np.asarray(dts, float)), np.log(np.asarray(errors, float)), 1)[0])
 
 
-def reference_run(method: str, problem, x, v, dt: float, steps: int = 1):
-    """mslab's own ``method`` from (x, v): ``steps`` steps; returns the final mslab State.
+def reference_run(method: str, problem: Problem, x: npt.ArrayLike, v: npt.ArrayLike, dt: float,
+                  steps: int = 1) -> State:
+    """Run mslab's own ``method`` from (x, v) for ``steps`` steps; return the final mslab State.
 
     Multistep methods are started with their own start-up step; the returned state
     carries their memory (Verlet: ``(x_prev, P)``, leapfrog: ``(v_half, a, P)``).

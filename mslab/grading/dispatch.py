@@ -20,6 +20,7 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from mslab.grading.remote import PR_SET_PDEATHSIG
@@ -62,7 +63,7 @@ def clean_stale_folders() -> None:
             continue
 
 
-def run_runner(job: dict, wall_limit: float, on_item) -> tuple[set, str]:
+def run_runner(job: dict, wall_limit: float, on_item: Callable[[str, dict], None]) -> tuple[set, str]:
     """Start one runner, feed it the job, hand each finished item to ``on_item(key, outcome)``.
 
     Returns the keys finished and why not all. The runner's temporary folder is the

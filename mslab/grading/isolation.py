@@ -68,7 +68,7 @@ class Plan:
 
 
 def _python_files() -> tuple[str, list[str]]:
-    """The real interpreter and the folders it needs (its prefix's lib folders)."""
+    """Return the real interpreter and the folders it needs (its prefix's lib folders)."""
     exe = os.path.realpath(sys.executable)
     libdir = sysconfig.get_config_var("LIBDIR") or ""
     stdlib = sysconfig.get_paths(vars={"base": sys.base_prefix, "platbase": sys.base_prefix})["stdlib"]
@@ -96,7 +96,7 @@ def _outermost(paths: list[str]) -> list[str]:
 
 
 def plan() -> Plan:
-    """The mounts of a sandbox (the same for every student; computed by the runner)."""
+    """Return the mounts of a sandbox (the same for every student; computed by the runner)."""
     import numpy
 
     exe, folders = _python_files()
@@ -142,18 +142,18 @@ def plan() -> Plan:
 
 
 def sandbox_argv(python: str, module: str = "module.py") -> list[str]:
-    """The sandbox command inside the namespaces (``-S``: no site, numpy from /grader)."""
+    """Return the sandbox command inside the namespaces (``-S``: no site, numpy from /grader)."""
     return [python, "-E", "-s", "-S", "/grader/sandbox.py", f"/work/{module}"]
 
 
 def new_uid() -> int | None:
-    """A fresh unprivileged uid for one sandbox when the grader is root, else None."""
+    """Return a fresh unprivileged uid for one sandbox when the grader is root, else None."""
     return UID_BASE + secrets.randbelow(UID_SPAN) if os.geteuid() == 0 else None
 
 
 def bwrap_command(p: Plan, source_fd: int, uid: int | None, argv: list[str] | None = None,
                   module: str = "module.py") -> list[str]:
-    """The bubblewrap command line running the sandbox (the student's file from ``source_fd``)."""
+    """Return the bubblewrap command line running the sandbox (the student's file from ``source_fd``)."""
     args = [shutil.which("bwrap") or "bwrap", "--unshare-pid", "--unshare-net", "--unshare-ipc",
             "--unshare-uts", "--unshare-cgroup-try", "--die-with-parent", "--new-session"]
     if uid is None:
@@ -181,14 +181,14 @@ def bwrap_command(p: Plan, source_fd: int, uid: int | None, argv: list[str] | No
 
 def jail_command(p: Plan, source_fd: int, uid: int | None, argv: list[str] | None = None,
                  module: str = "module.py") -> list[str]:
-    """The Python namespace launcher (:mod:`mslab.grading.jail`) running the sandbox."""
+    """Return the Python namespace launcher (:mod:`mslab.grading.jail`) running the sandbox."""
     config = {"mounts": [m.__dict__ for m in p.mounts], "uid": uid, "source_fd": source_fd,
               "module": module, "argv": argv or sandbox_argv(p.python, module)}
     return [os.path.realpath(sys.executable), "-I", "-S", str(JAIL), json.dumps(config)]
 
 
 def rlimit_command(module_file: Path) -> list[str]:
-    """The old sandbox: the grader's interpreter on the student's file, limits only."""
+    """Return the old sandbox: the grader's interpreter on the student's file, limits only."""
     return [sys.executable, "-E", "-s", str(HERE / "sandbox.py"), str(module_file)]
 
 
@@ -216,7 +216,7 @@ def _probe(mode: str) -> bool:
 
 
 def detect(mode: str = "auto") -> str:
-    """The isolation to use: ``mode`` if given (ValueError if unavailable), else the strongest."""
+    """Return the isolation to use: ``mode`` if given (ValueError if unavailable), else the strongest."""
     if mode not in ("auto", *MODES):
         raise ValueError(f"unknown isolation {mode!r} (choose from auto, {', '.join(MODES)})")
     if mode == "rlimits":

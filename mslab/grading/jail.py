@@ -33,17 +33,20 @@ libc = ctypes.CDLL(None, use_errno=True)
 
 
 def check(result: int, what: str) -> None:
+    """Raise OSError naming ``what`` and errno's text when a libc call returned non-zero."""
     if result != 0:
         err = ctypes.get_errno()
         raise OSError(err, f"{what}: {os.strerror(err)}")
 
 
-def mount(src, dst, fstype, flags, data=None) -> None:
+def mount(src: str | None, dst: str, fstype: str | None, flags: int, data: str | None = None) -> None:
+    """Call mount(2) (``None`` passes a null pointer)."""
     enc = [None if s is None else s.encode() for s in (src, dst, fstype, data)]
     check(libc.mount(enc[0], enc[1], enc[2], ctypes.c_ulong(flags), enc[3]), f"mount {dst}")
 
 
 def bind_ro(src: str, dst: str) -> None:
+    """Bind ``src`` read-only at ``dst``, keeping the flags a user namespace locks."""
     if os.path.isdir(src):
         os.makedirs(dst, exist_ok=True)
     else:
@@ -60,11 +63,13 @@ def bind_ro(src: str, dst: str) -> None:
 
 
 def write(path: str, text: str) -> None:
+    """Write ``text`` to the file ``path``."""
     with open(path, "w") as fh:
         fh.write(text)
 
 
 def build_root(root: str, config: dict, source: bytes) -> None:
+    """Build the sandbox's root on a tmpfs at ``root`` (mounts, the student's file, /dev, /proc)."""
     mount("tmpfs", root, "tmpfs", MS_NOSUID | MS_NODEV, "size=1m,mode=0755")
     for m in config["mounts"]:
         dst = root + m["dst"]
@@ -95,6 +100,7 @@ def build_root(root: str, config: dict, source: bytes) -> None:
 
 
 def enter_root(root: str) -> None:
+    """Make ``root`` the root (``pivot_root``), drop the old one, remount it read-only."""
     os.chdir(root)
     os.mkdir("oldroot")
     check(libc.syscall(SYS_PIVOT_ROOT, b".", b"oldroot"), "pivot_root")
@@ -105,6 +111,7 @@ def enter_root(root: str) -> None:
 
 
 def child(config: dict, source: bytes, root: str) -> None:
+    """Be PID 1 of the new namespace: build and enter the root, drop privileges, exec the sandbox."""
     libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
     mount(None, "/", None, MS_REC | MS_PRIVATE)
     build_root(root, config, source)
@@ -122,6 +129,7 @@ def child(config: dict, source: bytes, root: str) -> None:
 
 
 def main() -> None:
+    """Unshare the namespaces, fork the child and exit as it exits (``CONFIG`` is ``sys.argv[1]``)."""
     config = json.loads(sys.argv[1])
     libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
     with os.fdopen(config["source_fd"], "rb") as fh:

@@ -6,6 +6,7 @@ import ast
 import os
 import re
 import stat
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -42,6 +43,7 @@ class Exercise:
 
     @property
     def max_points(self) -> float:
+        """Points the exercise's tests are worth."""
         return float(sum(self.points.values()))
 
 
@@ -74,7 +76,7 @@ def test_points(filename: str, source: str) -> dict[str, float]:
 
 
 def find_exercises(source: str | Path) -> list[Exercise]:
-    """The exercise folders of an instructor's tree, in order (ValueError if there are none)."""
+    """Return the exercise folders of an instructor's tree, in order (ValueError if there are none)."""
     source = Path(source)
     if not source.is_dir():
         raise ValueError(f"{source}: not a folder of exercises")
@@ -97,13 +99,13 @@ def find_exercises(source: str | Path) -> list[Exercise]:
 
 
 def is_submission(folder: Path, exercises: list[Exercise]) -> bool:
-    """A submission folder holds at least one exercise folder (or one exercise's file)."""
+    """Tell whether a submission folder holds at least one exercise folder (or one exercise's file)."""
     names = {e.name for e in exercises}
     return any((folder / n).is_dir() for n in names)
 
 
-def expand_submissions(paths, exercises: list[Exercise]) -> list[tuple[Path, str]]:
-    """Submission folders from the command line: each path is one submission or a class of them.
+def expand_submissions(paths: Iterable[str | Path], exercises: list[Exercise]) -> list[tuple[Path, str]]:
+    """Return the submission folders of the command line: each path is one submission or a class of them.
 
     Returns ``(folder, refusal)`` pairs: ``refusal`` is empty, or why the folder is not
     graded (a symbolic link: the student's work must be the student's own files).
@@ -128,7 +130,7 @@ def _refusal(folder: Path) -> str:
 
 
 def read_student_file(submission: Path, exercise: Exercise) -> tuple[str | None, str]:
-    """The student's source for an exercise and ``""``, or None and why it was not read.
+    """Return the student's source for an exercise and ``""``, or None and why it was not read.
 
     Only plain files count: no symbolic link (the folder, the exercise folder or the file),
     no file with a second hard link (it could be the reference solution), nothing but a

@@ -10,7 +10,14 @@ as an :class:`mslab.System` for reference solutions (a test checks both agree).
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+if TYPE_CHECKING:
+    import numpy.typing as npt
+
+    from mslab.system import System
 
 
 class Problem:
@@ -46,10 +53,11 @@ class Problem:
 
     @property
     def dim(self) -> int:
+        """Number of space dimensions."""
         return self.x0.shape[1]
 
-    def __call__(self, x, v=None) -> np.ndarray:
-        """Acceleration ``a(x, v)``, shape (n_particles, dim); ``v=None`` means at rest."""
+    def __call__(self, x: npt.ArrayLike, v: npt.ArrayLike | None = None) -> np.ndarray:
+        """Return the acceleration ``a(x, v)``, shape (n_particles, dim); ``v=None`` means at rest."""
         self.n_calls += 1
         x = np.asarray(x, dtype=float)
         v = np.zeros_like(x) if v is None else np.asarray(v, dtype=float)
@@ -64,8 +72,11 @@ class Problem:
 
     acceleration = __call__
 
-    def jacobians(self, x, v=None) -> tuple[np.ndarray, np.ndarray]:
-        """Dense ``(da/dx, da/dv)``, each (n_particles*dim, n_particles*dim), ordered (particle, axis)."""
+    def jacobians(self, x: npt.ArrayLike, v: npt.ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Return the dense ``(da/dx, da/dv)``, ordered (particle, axis).
+
+        Each has shape (n_particles*dim, n_particles*dim).
+        """
         x = np.asarray(x, dtype=float)
         n, dim = x.shape
         K = np.zeros((n * dim, n * dim))
@@ -83,8 +94,8 @@ class Problem:
         D = -self.gamma * np.diag(minv)
         return minv[:, None] * K, D
 
-    def system(self):
-        """The same model as an :class:`mslab.System` (for reference solutions)."""
+    def system(self) -> System:
+        """Return the same model as an :class:`mslab.System` (for reference solutions)."""
         from mslab.scenes.builder import SceneBuilder
 
         b = SceneBuilder(self.dim)
@@ -103,7 +114,8 @@ class Problem:
         return f"problem({self.name!r}, {args})"
 
 
-def _oscillator(p: Problem, stiffness=1.0, mass=1.0, displacement=0.5, rest_length=1.0, gamma=0.0, dim=1):
+def _oscillator(p: Problem, stiffness: float = 1.0, mass: float = 1.0, displacement: float = 0.5,
+                rest_length: float = 1.0, gamma: float = 0.0, dim: int = 1):
     e = np.zeros(dim)
     e[0] = 1.0
     p.x0 = np.array([np.zeros(dim), (rest_length + displacement) * e])
@@ -117,7 +129,8 @@ def _oscillator(p: Problem, stiffness=1.0, mass=1.0, displacement=0.5, rest_leng
     p.gamma = float(gamma)
 
 
-def _chain(p: Problem, n=5, dim=2, length=1.0, mass=1.0, stiffness=100.0, gravity=9.81, gamma=0.0, sag=0.0):
+def _chain(p: Problem, n: int = 5, dim: int = 2, length: float = 1.0, mass: float = 1.0,
+           stiffness: float = 100.0, gravity: float = 9.81, gamma: float = 0.0, sag: float = 0.0):
     """``n`` particles on the x axis, the first pinned; ``sag`` bends it into a parabola."""
     s = np.linspace(0.0, 1.0, n)
     p.x0 = np.zeros((n, dim))
@@ -136,5 +149,5 @@ def _chain(p: Problem, n=5, dim=2, length=1.0, mass=1.0, stiffness=100.0, gravit
 
 
 def problem(name: str, **params) -> Problem:
-    """A test problem by name: ``"oscillator"`` or ``"chain"`` (see the module docstring)."""
+    """Return a test problem by name: ``"oscillator"`` or ``"chain"`` (see the module docstring)."""
     return Problem(name, **params)

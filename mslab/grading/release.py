@@ -88,7 +88,7 @@ def _umask() -> int:
 
 
 def solution_lines(text: str) -> list[str]:
-    """The stripped, non-empty lines inside solution blocks (what a release must not contain)."""
+    """Return the stripped, non-empty lines inside solution blocks (what a release must not contain)."""
     lines, inside = [], False
     for line in text.splitlines():
         marker = line.strip()

@@ -148,6 +148,7 @@ class Sandbox:
             self.start(time.monotonic() + self.import_timeout)
 
     def start(self, deadline: float) -> None:
+        """Start the sandbox process; it must have imported the student's file by ``deadline``."""
         argv, fds, cwd = self._command()
         self.proc = subprocess.Popen(
             argv, cwd=cwd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
@@ -202,6 +203,7 @@ class Sandbox:
         return msg
 
     def request(self, msg: dict, deadline: float, limit: float | None = None) -> dict:
+        """Send one message and return the reply (StudentError when none comes by ``deadline``)."""
         self.ensure_started()
         try:
             self.proc.stdin.write(dumps(msg))
@@ -217,6 +219,7 @@ class Sandbox:
             raise
 
     def kill(self) -> None:
+        """Kill the sandbox process and its whole session."""
         if self.proc is None:
             return
         try:
@@ -300,7 +303,7 @@ class Student:
 
 
 def _mro(reply: dict) -> tuple[str, ...]:
-    """The student's exception classes; none when the sandbox itself reports (data it cannot send)."""
+    """Return the student's exception classes; none when the sandbox itself reports (data it cannot send)."""
     mro = tuple(str(c) for c in reply.get("mro", ()) if isinstance(c, str))
     return () if mro[:1] == (WIRE_FAILURE,) else mro
 

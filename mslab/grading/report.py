@@ -12,24 +12,30 @@ import hashlib
 import json
 import os
 import tempfile
+from collections.abc import Iterable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from mslab.grading.autograde import SubmissionResult
+    from mslab.grading.layout import Exercise
 
 
 def printable(text: str, limit: int = 120) -> str:
-    """``text`` with control and non-printable characters as ``\\xNN`` escapes, shortened."""
+    r"""Return ``text`` with control and non-printable characters as ``\xNN`` escapes, shortened."""
     out = "".join(c if c.isprintable() else f"\\x{ord(c):02x}" if ord(c) < 256 else f"\\u{ord(c):04x}"
                   for c in str(text))
     return out if len(out) <= limit else out[: limit - 3] + "..."
 
 
-def csv_cell(value) -> str:
-    """One CSV cell that no spreadsheet evaluates."""
+def csv_cell(value: Any) -> str:
+    """Return one CSV cell that no spreadsheet evaluates."""
     text = printable(str(value), limit=200)
     return "'" + text if text[:1] in ("=", "+", "-", "@", "\t", "\r") else text
 
 
-def format_report(result) -> str:
-    """The human-readable score sheet of one submission (a :class:`SubmissionResult`)."""
+def format_report(result: SubmissionResult) -> str:
+    """Return the human-readable score sheet of one submission (a :class:`SubmissionResult`)."""
     lines = [f"{printable(result.student)}  ({printable(result.submission, 200)})"]
     if result.isolation:
         lines.append(f"  isolation: {result.isolation}")
@@ -43,8 +49,8 @@ def format_report(result) -> str:
     return "\n".join(lines)
 
 
-def gradebook_rows(results) -> list[list[str]]:
-    """CSV rows: header, then one row per student (total, max, one column per exercise)."""
+def gradebook_rows(results: Sequence[SubmissionResult]) -> list[list[str]]:
+    """Return the CSV rows: header, then one row per student (total, max, one column per exercise)."""
     names = [e.name for e in results[0].exercises] if results else []
     rows: list[list[str]] = [["student", "total", "max", *names]]
     for r in results:
@@ -54,6 +60,7 @@ def gradebook_rows(results) -> list[list[str]]:
 
 
 def umask() -> int:
+    """Return the process's umask (set and restored)."""
     mask = os.umask(0o022)
     os.umask(mask)
     return mask
@@ -101,23 +108,27 @@ class Journal:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._fh = open(self.path, "a" if resume else "w")
 
-    def add(self, key: str, outcome) -> None:
+    def add(self, key: str, outcome: dict | None) -> None:
+        """Append the outcome of the item ``key`` and flush it to disk."""
         self._fh.write(json.dumps({"fingerprint": self.fingerprint, "key": key, "outcome": outcome}) + "\n")
         self._fh.flush()
         os.fsync(self._fh.fileno())
 
     def close(self, finished: bool) -> None:
+        """Close the journal; a finished grading removes it."""
         self._fh.close()
         if finished:
             self.path.unlink(missing_ok=True)
 
 
 def item_key(submission: Path, exercise: str, source: str | None) -> str:
+    """Return the journal key of one exercise of one submission (its path, name and file hash)."""
     digest = hashlib.sha256((source or "").encode()).hexdigest()[:20]
     return f"{os.path.abspath(submission)}\0{exercise}\0{digest}"
 
 
-def fingerprint(exercises, timeout: float, memory_mb: int) -> str:
+def fingerprint(exercises: Iterable[Exercise], timeout: float, memory_mb: int) -> str:
+    """Return a hash of the instructor's tests and the limits (a journal is reused only if it matches)."""
     h = hashlib.sha256(f"{timeout}:{memory_mb}".encode())
     for ex in exercises:
         for name, text in sorted(ex.tests.items()):

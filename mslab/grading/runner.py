@@ -25,6 +25,7 @@ import os
 import shutil
 import sys
 import tempfile
+from collections.abc import Generator, Iterator
 from pathlib import Path
 
 import pytest
@@ -32,8 +33,8 @@ import pytest
 from mslab.grading.remote import Sandbox, Student, StudentError, set_not_dumpable
 
 
-def short_reason(excinfo) -> tuple[str, str, str]:
-    """One line for the grade report, the kind of failure, and the student's exception type.
+def short_reason(excinfo: pytest.ExceptionInfo) -> tuple[str, str, str]:
+    """Return one line for the grade report, the kind of failure, and the student's exception type.
 
     Kinds: ``raised`` (the student's code raised ``etype``), ``process`` (the student's
     process timed out, crashed, could not be imported or answered no data: the line is the
@@ -68,16 +69,19 @@ class GradingPlugin:
         self.tamper_check = None
 
     @pytest.fixture
-    def student(self):
+    def student(self) -> Student:
+        """Fixture: the student's module, each call forwarded to the sandbox."""
         if self.missing:
             raise StudentError(self.missing)
         return Student(self.sandbox, self.timeout)
 
-    def pytest_collectreport(self, report):
+    def pytest_collectreport(self, report: pytest.CollectReport) -> None:
+        """Record a test file that could not be collected."""
         if report.failed:
             self.collect_errors.append(f"{report.nodeid}: {str(report.longrepr).splitlines()[-1][:200]}")
 
-    def pytest_collection_finish(self, session):
+    def pytest_collection_finish(self, session: pytest.Session) -> None:
+        """Skip every test when the test files changed on disk (tampering)."""
         if self.tamper_check is not None and not self.tamper_check():
             self.collect_errors.append("the test files changed on disk during grading (tampering)")
             session.shouldstop = "tampered"
@@ -85,7 +89,10 @@ class GradingPlugin:
                 item.add_marker(pytest.mark.skip(reason="tampered"))
 
     @pytest.hookimpl(wrapper=True)
-    def pytest_runtest_makereport(self, item, call):
+    def pytest_runtest_makereport(
+        self, item: pytest.Item, call: pytest.CallInfo
+    ) -> Generator[None, pytest.TestReport, pytest.TestReport]:
+        """Record each test's outcome and, for a failure, its reason."""
         rep = yield
         key = f"{Path(item.fspath).name}::{item.name}"
         entry = self.results.setdefault(key, {"passed": None, "reason": "not run"})
@@ -158,8 +165,8 @@ def run_exercise(job: dict, ex: dict) -> dict:
         shutil.rmtree(root, ignore_errors=True)
 
 
-def run_job(job: dict):
-    """Every item (one exercise of one submission) of the job in turn: yields ``(key, outcome)``."""
+def run_job(job: dict) -> Iterator[tuple[str, dict]]:
+    """Run every item (one exercise of one submission) of the job in turn; yield ``(key, outcome)``."""
     for item in job["items"]:
         try:
             yield item["key"], run_exercise(job, item)
@@ -168,6 +175,7 @@ def run_job(job: dict):
 
 
 def main() -> None:
+    """Run the job read from stdin; print one ``NONCE JSON`` line per item."""
     set_not_dumpable()
     sys.dont_write_bytecode = True
     out = os.fdopen(os.dup(1), "w")

@@ -49,6 +49,7 @@ def _error(err: BaseException, filename: str) -> dict:
 
 
 def main() -> None:
+    """Import the student's file (``sys.argv[1]``) and answer calls on the channel until it closes."""
     filename = os.path.abspath(sys.argv[1])
     chan_in = os.fdopen(os.dup(0), "rb")
     chan_out = os.fdopen(os.dup(1), "wb")

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import base64
 import json
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -24,8 +26,8 @@ class WireError(ValueError):
     """A message that is not plain data (or is malformed)."""
 
 
-def encode(obj, depth: int = 0):
-    """Plain data -> JSON-able structure; anything else raises WireError."""
+def encode(obj: Any, depth: int = 0) -> Any:
+    """Turn plain data into a JSON-able structure; anything else raises WireError."""
     if depth > MAX_DEPTH:
         raise WireError("nested too deeply")
     if obj is None or isinstance(obj, bool | str):
@@ -57,8 +59,8 @@ def encode(obj, depth: int = 0):
     raise WireError(f"an object of type {type(obj).__name__} is not plain data")
 
 
-def decode(obj, make_problem=None, depth: int = 0):
-    """Inverse of :func:`encode`; strict. ``make_problem(spec)`` rebuilds a test problem."""
+def decode(obj: Any, make_problem: Callable[[Any], Any] | None = None, depth: int = 0) -> Any:
+    """Invert :func:`encode`; strict. ``make_problem(spec)`` rebuilds a test problem."""
     if depth > MAX_DEPTH:
         raise WireError("nested too deeply")
     if obj is None or isinstance(obj, bool | int | float | str):
@@ -93,8 +95,8 @@ def decode(obj, make_problem=None, depth: int = 0):
     raise WireError(f"unknown tag {tag!r}")
 
 
-def dumps(obj) -> bytes:
-    """One message as one line of bytes (raises WireError for non-data)."""
+def dumps(obj: Any) -> bytes:
+    """Return one message as one line of bytes (raises WireError for non-data)."""
     return json.dumps(encode(obj), separators=(",", ":")).encode() + b"\n"
 
 
@@ -102,7 +104,7 @@ def dumps(obj) -> bytes:
 MAX_CONTAINERS = 100_000
 
 
-def loads(line: bytes, make_problem=None):
+def loads(line: bytes, make_problem: Callable[[Any], Any] | None = None) -> Any:
     """Decode one message line; WireError if it is not a well-formed message.
 
     Bounded before parsing: a line with more than :data:`MAX_CONTAINERS` brackets or nested

@@ -2,12 +2,21 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
 import matplotlib.pyplot as plt
 import numpy as np
 
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
-def plot_energy(traj, ax=None, components: bool = True, label: str | None = None):
-    """Energy ledger of one run over time: K, U, dissipated and the total ``K + U + D``.
+    from mslab.trajectory import Trajectory
+
+
+def plot_energy(traj: Trajectory, ax: Axes | None = None, components: bool = True,
+                label: str | None = None) -> Axes:
+    """Plot the energy ledger of one run over time: K, U, dissipated and the total ``K + U + D``.
 
     Parameters
     ----------
@@ -37,8 +46,8 @@ def plot_energy(traj, ax=None, components: bool = True, label: str | None = None
     return ax
 
 
-def plot_energy_error(trajs, ax=None):
-    """Relative error of the ledger total for several runs (log scale).
+def plot_energy_error(trajs: Sequence[Trajectory], ax: Axes | None = None) -> Axes:
+    """Plot the relative error of the ledger total for several runs (log scale).
 
     Plots ``|E(t) - E(0)|`` divided by the run's energy scale
     (:meth:`mslab.simulate.Energy.relative_drift`: the largest kinetic energy in the first

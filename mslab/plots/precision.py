@@ -8,9 +8,17 @@ scipy's solvers are drawn dashed with open markers, mslab's methods solid with f
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Mapping, Sequence
+from typing import TYPE_CHECKING
 
 import matplotlib.pyplot as plt
 import numpy as np
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+
+    from mslab.precision.convergence import Convergence
+    from mslab.precision.drift import Drift
 
 _MARKERS = "osD^v<>phH*"
 _SCIPY_MARKERS = "xP+1"
@@ -24,15 +32,15 @@ _AXIS_LABELS = {
 }
 
 
-def _groups(records) -> dict:
-    """``{method: [records]}`` in first-seen order."""
+def _groups(records: Iterable[dict]) -> dict:
+    """Group records as ``{method: [records]}`` in first-seen order."""
     out: dict = {}
     for r in records:
         out.setdefault(r["method"], []).append(r)
     return out
 
 
-def _usable(rows, xkey: str, ykey: str):
+def _usable(rows: Iterable[dict], xkey: str, ykey: str):
     pts = [(r[xkey], r[ykey]) for r in rows
            if r.get("ok", True) and r[xkey] is not None and r[ykey] is not None
            and math.isfinite(r[xkey]) and math.isfinite(r[ykey]) and r[xkey] > 0 and r[ykey] > 0]
@@ -40,8 +48,9 @@ def _usable(rows, xkey: str, ykey: str):
     return [p[0] for p in pts], [p[1] for p in pts]
 
 
-def plot_work_precision(records, ax=None, x: str = "wall_time", error: str = "error", methods=None):
-    """Error against cost for every method: the work-precision diagram (log-log).
+def plot_work_precision(records: list[dict], ax: Axes | None = None, x: str = "wall_time",
+                        error: str = "error", methods: Sequence[str] | None = None) -> Axes:
+    """Plot error against cost for every method: the work-precision diagram (log-log).
 
     Parameters
     ----------
@@ -83,8 +92,8 @@ def plot_work_precision(records, ax=None, x: str = "wall_time", error: str = "er
     return ax
 
 
-def _slope_triangle(ax, x0: float, y0: float, order: float, width: float = 2.0) -> None:
-    """A right triangle below a curve: run ``width`` (a factor in dt), rise ``width**order``."""
+def _slope_triangle(ax: Axes, x0: float, y0: float, order: float, width: float = 2.0) -> None:
+    """Draw a right triangle below a curve: run ``width`` (a factor in dt), rise ``width**order``."""
     x1 = x0 * width
     y1 = y0 * width ** order
     ax.plot([x0, x1, x1, x0], [y0, y0, y1, y0], color="k", lw=0.8)
@@ -92,8 +101,9 @@ def _slope_triangle(ax, x0: float, y0: float, order: float, width: float = 2.0) 
                 va="center", fontsize="small")
 
 
-def plot_convergence(result, ax=None, triangles: bool = True, methods=None):
-    """Error at t_end against dt (log-log), one line per method, with slope triangles.
+def plot_convergence(result: Convergence | list[dict], ax: Axes | None = None, triangles: bool = True,
+                     methods: Sequence[str] | None = None) -> Axes:
+    """Plot the error at t_end against dt (log-log), one line per method, with slope triangles.
 
     Parameters
     ----------
@@ -138,8 +148,9 @@ def plot_convergence(result, ax=None, triangles: bool = True, methods=None):
     return ax
 
 
-def plot_energy_drift(drifts, ax=None, floor: float = 1e-17):
-    """Relative energy error ``|E(t) - E(0)| / E_scale`` over time (log scale) per method.
+def plot_energy_drift(drifts: Mapping[str, Drift] | Sequence[Drift], ax: Axes | None = None,
+                      floor: float = 1e-17) -> Axes:
+    """Plot the relative energy error ``|E(t) - E(0)| / E_scale`` over time (log scale) per method.
 
     Parameters
     ----------

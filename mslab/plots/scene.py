@@ -2,11 +2,21 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.collections import LineCollection
+
+if TYPE_CHECKING:
+    import numpy.typing as npt
+    from matplotlib.axes import Axes
+
+    from mslab.effects.base import Effect
+    from mslab.scenes.builder import Scene
+    from mslab.trajectory import Trajectory
 
 
 def _as_2d(x: np.ndarray) -> np.ndarray:
@@ -25,7 +35,7 @@ def _limits(points: np.ndarray, margin: float = 0.08) -> tuple[np.ndarray, np.nd
     return lo - margin * span, hi + margin * span
 
 
-def _draw_colliders(ax, colliders, dim: int, lo, hi) -> None:
+def _draw_colliders(ax: Axes, colliders: Sequence[Effect], dim: int, lo: np.ndarray, hi: np.ndarray) -> None:
     for c in colliders:
         if hasattr(c, "radius"):
             if dim == 3:
@@ -51,8 +61,10 @@ def _draw_colliders(ax, colliders, dim: int, lo, hi) -> None:
                 ax.plot(*np.stack([p0 - s * t, p0 + s * t]).T, color="0.5", lw=2, zorder=0)
 
 
-def plot_configuration(x, springs, ax=None, pinned=None, colliders=(), limits=None, color="C0"):
-    """Particles and springs of one configuration, in 2D or 3D.
+def plot_configuration(x: npt.ArrayLike, springs: npt.ArrayLike, ax: Axes | None = None,
+                       pinned: npt.ArrayLike | None = None, colliders: Sequence[Effect] = (),
+                       limits: tuple[np.ndarray, np.ndarray] | None = None, color: Any = "C0") -> Axes:
+    """Plot the particles and springs of one configuration, in 2D or 3D.
 
     Parameters
     ----------
@@ -76,8 +88,10 @@ def plot_configuration(x, springs, ax=None, pinned=None, colliders=(), limits=No
     return _draw(x, springs, ax, pinned, colliders, limits, color)[0]
 
 
-def _draw(x, springs, ax, pinned, colliders, limits, color):
-    """``plot_configuration`` that also returns an ``update(x)`` callback for animations."""
+def _draw(x: npt.ArrayLike, springs: npt.ArrayLike, ax: Axes | None, pinned: npt.ArrayLike | None,
+          colliders: Sequence[Effect], limits: tuple[np.ndarray, np.ndarray] | None,
+          color: Any) -> tuple[Axes, Callable[[np.ndarray], None]]:
+    """Do ``plot_configuration`` and also return an ``update(x)`` callback for animations."""
     x = np.asarray(x, dtype=float)
     dim = x.shape[1]
     springs = np.asarray(springs, dtype=np.int64).reshape(-1, 2)
@@ -104,7 +118,7 @@ def _draw(x, springs, ax, pinned, colliders, limits, color):
         )
         ax.set_box_aspect(np.maximum(hi - lo, 0.2 * float(np.max(hi - lo))))
 
-        def update(y):
+        def update(y: np.ndarray):
             lines.set_segments(y[springs])
             dots.set_data_3d(*y[free].T)
     else:
@@ -116,7 +130,7 @@ def _draw(x, springs, ax, pinned, colliders, limits, color):
         ax.set(xlim=(lo[0], hi[0]), ylim=(lo[1], hi[1]), xlabel="x [m]", ylabel="y [m]" if dim == 2 else "")
         ax.set_aspect("equal")
 
-        def update(y):
+        def update(y: np.ndarray):
             y = _as_2d(y)
             lines.set_segments(y[springs])
             dots.set_data(*y[free].T)
@@ -124,7 +138,8 @@ def _draw(x, springs, ax, pinned, colliders, limits, color):
     return ax, update
 
 
-def animate(traj, scene, path, fps: int = 15, max_frames: int = 60, progress=None) -> Path:
+def animate(traj: Trajectory, scene: Scene, path: str | Path, fps: int = 15, max_frames: int = 60,
+            progress: Any = None) -> Path:
     """Write an animation of a trajectory: GIF (Pillow) or MP4 (ffmpeg), chosen by ``path``'s suffix.
 
     Parameters
@@ -158,7 +173,7 @@ def animate(traj, scene, path, fps: int = 15, max_frames: int = 60, progress=Non
         ax.set(xticks=[], yticks=[], zticks=[])
     title = ax.set_title("", fontsize="small")
 
-    def draw(k):
+    def draw(k: int):
         update(traj.x[frames[k]])
         title.set_text(f"{scene.name}  t = {traj.t[frames[k]]:.3f} s  ({traj.stats.method})")
         return ()

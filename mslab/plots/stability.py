@@ -6,15 +6,24 @@ own coefficients and update equations).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
 import matplotlib.pyplot as plt
 import numpy as np
 
 from mslab import stability
 
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
-def plot_stability_regions(methods, ax=None, re=(-4.0, 1.5), im=(-3.5, 3.5), n: int = 301,
-                           filled: bool = True):
-    """Stability regions ``{z : |R(z)| <= 1}`` of several methods, ``z = dt lam``.
+    from mslab.integrators.base import Integrator
+
+
+def plot_stability_regions(methods: Sequence[str | Integrator], ax: Axes | None = None,
+                           re: tuple[float, float] = (-4.0, 1.5), im: tuple[float, float] = (-3.5, 3.5),
+                           n: int = 301, filled: bool = True) -> Axes:
+    """Plot the stability regions ``{z : |R(z)| <= 1}`` of several methods, ``z = dt lam``.
 
     Parameters
     ----------
@@ -54,9 +63,9 @@ def plot_stability_regions(methods, ax=None, re=(-4.0, 1.5), im=(-3.5, 3.5), n: 
     return ax
 
 
-def plot_oscillator_stability(methods, ax=None, h_omega_max: float = 4.0, n: int = 400,
-                              h_gamma: float = 0.0):
-    """Spectral radius of each method's amplification matrix against ``dt w``.
+def plot_oscillator_stability(methods: Sequence[str | Integrator], ax: Axes | None = None,
+                              h_omega_max: float = 4.0, n: int = 400, h_gamma: float = 0.0) -> Axes:
+    """Plot the spectral radius of each method's amplification matrix against ``dt w``.
 
     Above 1 the oscillator's numerical amplitude grows every step.
 
@@ -90,6 +99,6 @@ def plot_oscillator_stability(methods, ax=None, h_omega_max: float = 4.0, n: int
 
 
 def _colors(n: int) -> list:
-    """n distinguishable colours (tab10, tab20 beyond ten methods)."""
+    """Return n distinguishable colours (tab10, tab20 beyond ten methods)."""
     cmap = plt.get_cmap("tab10" if n <= 10 else "tab20")
     return [cmap(k % cmap.N) for k in range(n)]

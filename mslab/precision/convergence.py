@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -12,11 +14,15 @@ from mslab.precision.reference import reference_solution
 from mslab.precision.work_precision import work_precision
 from mslab.scenes.builder import Scene
 
+if TYPE_CHECKING:
+    from mslab.integrators.base import Integrator
+
 #: errors below this are round-off, not truncation error; left out of the order fit
 ROUNDOFF_FLOOR = 1e-11
 
 
-def fit_order(dts, errors, floor: float = ROUNDOFF_FLOOR, ceiling: float = math.inf) -> float:
+def fit_order(dts: Sequence[float], errors: Sequence[float], floor: float = ROUNDOFF_FLOOR,
+              ceiling: float = math.inf) -> float:
     """Least-squares slope of ``log(error)`` against ``log(dt)``.
 
     Points with a non-finite error, one below ``floor`` (round-off) or one above
@@ -33,7 +39,7 @@ def fit_order(dts, errors, floor: float = ROUNDOFF_FLOOR, ceiling: float = math.
 
 
 def error_ceiling(scene: Scene, t_end: float) -> float:
-    """A tenth of the solution's size: larger errors are outside the asymptotic range.
+    """Return a tenth of the solution's size: larger errors are outside the asymptotic range.
 
     The size is the larger of the scene's extent (bounding-box diagonal of the initial and
     the reference final positions) and the largest reference speed at ``t_end``.
@@ -44,9 +50,11 @@ def error_ceiling(scene: Scene, t_end: float) -> float:
     return 0.1 * max(extent, float(np.max(np.abs(ref.v_end))), 1e-300)
 
 
-def fitted_orders(records, floor: float = ROUNDOFF_FLOOR, ceiling: float = math.inf) -> dict:
-    """:func:`fit_order` of each mslab method in work-precision records; also sets each
-    record's ``local_order`` (the slope from the next larger dt)."""
+def fitted_orders(records: list[dict], floor: float = ROUNDOFF_FLOOR, ceiling: float = math.inf) -> dict:
+    """Return the :func:`fit_order` of each mslab method in work-precision records.
+
+    Also sets each record's ``local_order`` (the slope from the next larger dt).
+    """
     orders = {}
     names = list(dict.fromkeys(r["method"] for r in records if r.get("solver", "mslab") == "mslab"))
     for m in names:
@@ -80,12 +88,14 @@ class Convergence:
     expected: dict
 
     def as_dict(self) -> dict:
+        """Return the records, fitted orders and expected orders as plain data."""
         return {"records": self.records, "orders": self.orders, "expected": self.expected}
 
 
-def convergence(scene: Scene, methods, dts, t_end: float | None = None, *, floor: float = ROUNDOFF_FLOOR,
-                ceiling: float | None = None, n_save: int = 100, jobs: int = 1,
-                progress: bool | None = False) -> Convergence:
+def convergence(scene: Scene, methods: Sequence[str | Integrator],
+                dts: Sequence[float] | Mapping[str, Sequence[float]], t_end: float | None = None, *,
+                floor: float = ROUNDOFF_FLOOR, ceiling: float | None = None, n_save: int = 100,
+                jobs: int = 1, progress: bool | None = False) -> Convergence:
     """Global error at ``t_end`` against ``dt`` and the fitted order of each method.
 
     Parameters

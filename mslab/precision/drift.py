@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -12,6 +14,9 @@ from mslab.errors import ConvergenceError, InstabilityError, StabilityWarning
 from mslab.precision.runs import _method_names, _progress_bar, _save_every
 from mslab.scenes.builder import Scene
 from mslab.simulate import step_count
+
+if TYPE_CHECKING:
+    from mslab.integrators.base import Integrator
 
 #: energy-drift verdict (see :func:`drift_verdict`)
 DRIFT_TREND = 3.0
@@ -70,6 +75,7 @@ class Drift:
 
     @property
     def max_error(self) -> float:
+        """Largest absolute relative energy error of the run (nan when there are no samples)."""
         return float(np.max(np.abs(self.error))) if self.error.size else math.nan
 
     def as_record(self) -> dict:
@@ -82,8 +88,8 @@ class Drift:
                 "failure": self.failure, "stopped": self.stopped}
 
 
-def drift_verdict(t, error, *, trend_limit: float = DRIFT_TREND, growth_limit: float = DRIFT_GROWTH,
-                  floor: float = DRIFT_FLOOR) -> dict:
+def drift_verdict(t: np.ndarray, error: np.ndarray, *, trend_limit: float = DRIFT_TREND,
+                  growth_limit: float = DRIFT_GROWTH, floor: float = DRIFT_FLOOR) -> dict:
     """Bounded or drifting: the rule applied to a relative energy error ``error(t)``.
 
     A symplectic method's energy error oscillates about a fixed level for very long
@@ -133,8 +139,9 @@ def drift_verdict(t, error, *, trend_limit: float = DRIFT_TREND, growth_limit: f
     return out
 
 
-def energy_drift(scene: Scene, methods, dt: float | None = None, t_end: float | None = None, *,
-                 n_save: int = 2000, trend_limit: float = DRIFT_TREND, growth_limit: float = DRIFT_GROWTH,
+def energy_drift(scene: Scene, methods: Sequence[str | Integrator], dt: float | None = None,
+                 t_end: float | None = None, *, n_save: int = 2000,
+                 trend_limit: float = DRIFT_TREND, growth_limit: float = DRIFT_GROWTH,
                  warm_up: bool = True, progress: bool | None = False) -> dict:
     """Relative energy error over time, drift rate and verdict of each method.
 

@@ -8,12 +8,19 @@ particles have zero acceleration and stay put); it is cached per scene object an
 from __future__ import annotations
 
 import weakref
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from mslab.errors import InstabilityError
 from mslab.scenes.builder import Scene
+
+if TYPE_CHECKING:
+    import numpy.typing as npt
+
+    from mslab.system import System
 
 
 @dataclass
@@ -38,8 +45,8 @@ class Reference:
     n_force: int = 0
     _dense: object = field(default=None, repr=False)
 
-    def at(self, t) -> tuple[np.ndarray, np.ndarray]:
-        """Reference ``(x, v)`` at times ``t``, each of shape (n_t, n_particles, dim)."""
+    def at(self, t: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """Return the reference ``(x, v)`` at times ``t``, each of shape (n_t, n_particles, dim)."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
         return self._dense(t)
 
@@ -47,25 +54,25 @@ class Reference:
 _REFERENCES: dict = {}
 
 
-def _flat_rhs(system, shape):
+def _flat_rhs(system: System, shape: tuple[int, ...]) -> Callable[[float, np.ndarray], np.ndarray]:
     """``f(t, y)`` of the first-order system ``y = (x, v)`` for solve_ivp; counts n_force."""
     n = int(np.prod(shape))
 
-    def f(t, y):
+    def f(t: float, y: np.ndarray):
         a = system.acceleration(y[:n].reshape(shape), y[n:].reshape(shape))
         return np.concatenate([y[n:], a.ravel()])
 
     return f
 
 
-def _flat_jacobian(system, shape):
+def _flat_jacobian(system: System, shape: tuple[int, ...]) -> Callable:
     """``df/dy = [[0, I], [M^-1 K, M^-1 D]]`` (sparse) for scipy's implicit solvers; counts n_jac."""
     import scipy.sparse as sp
 
     n = int(np.prod(shape))
     minv = system.inv_mass_diag
 
-    def jac(t, y):
+    def jac(t: float, y: np.ndarray):
         K, D = system.jacobians(y[:n].reshape(shape), y[n:].reshape(shape))
         lower_v = minv @ D if D is not None else sp.csr_matrix((n, n))
         return sp.bmat([[None, sp.identity(n)], [minv @ K, lower_v]], format="csc")
@@ -79,7 +86,7 @@ def _y0(scene: Scene) -> np.ndarray:
 
 def reference_solution(scene: Scene, t_end: float, *, use_exact: bool = True,
                        rtol: float = 1e-12, atol: float = 1e-12) -> Reference:
-    """The reference solution of ``scene`` on ``[0, t_end]`` (cached per scene and t_end).
+    """Return the reference solution of ``scene`` on ``[0, t_end]`` (cached per scene and t_end).
 
     Parameters
     ----------
@@ -113,7 +120,7 @@ def reference_solution(scene: Scene, t_end: float, *, use_exact: bool = True,
         raise InstabilityError(f"reference solution (DOP853) failed: {sol.message}")
     n = int(np.prod(shape))
 
-    def dense(t):
+    def dense(t: np.ndarray):
         y = sol.sol(t).T  # (n_t, 2n)
         return y[:, :n].reshape((-1,) + shape), y[:, n:].reshape((-1,) + shape)
 

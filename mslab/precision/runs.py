@@ -10,9 +10,10 @@ from __future__ import annotations
 import math
 import time
 import warnings
-from collections.abc import Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -21,6 +22,9 @@ from mslab.integrators.base import get_method
 from mslab.precision.reference import Reference, _flat_jacobian, _flat_rhs, _y0
 from mslab.scenes.builder import Scene
 from mslab.simulate import step_count
+
+if TYPE_CHECKING:
+    from mslab.integrators.base import Integrator
 
 
 def _save_every(steps: int, n_save: int) -> int:
@@ -96,10 +100,12 @@ def _record(solver: str, method: str, dt: float, rtol: float | None, run: dict, 
     }
 
 
-def _time_it(run_once, repeats: int, budget: float, warm_up: bool) -> float:
-    """Minimum of up to ``repeats`` timed calls, stopping once ``budget`` seconds are spent
-    (at least one call), after an untimed warm-up call when ``warm_up``.
-    ``run_once()`` returns the seconds it measured."""
+def _time_it(run_once: Callable[[], float], repeats: int, budget: float, warm_up: bool) -> float:
+    """Return the minimum of up to ``repeats`` timed calls.
+
+    Stops once ``budget`` seconds are spent (at least one call), after an untimed warm-up
+    call when ``warm_up``. ``run_once()`` returns the seconds it measured.
+    """
     if warm_up:
         run_once()
     best = math.inf
@@ -127,38 +133,41 @@ def _time_mslab(scene: Scene, method: str, dt: float, t_end: float, repeats: int
     return _time_it(once, repeats, budget, warm_up)
 
 
-def _time_scipy(scene: Scene, solver: str, rtol: float, t_end: float, atol, repeats: int,
+def _time_scipy(scene: Scene, solver: str, rtol: float, t_end: float, atol: float | None, repeats: int,
                 budget: float, warm_up: bool) -> float:
     return _time_it(lambda: _scipy_run(scene, solver, rtol, t_end, atol)["stats"]["wall_time"],
                     repeats, budget, warm_up)
 
 
 def _picklable(scene: Scene) -> Scene:
-    """The scene without its closed form (a closure): errors are computed by the caller."""
+    """Return the scene without its closed form (a closure): errors are computed by the caller."""
     return replace(scene, exact=None) if scene.exact is not None else scene
 
 
-def _call(task):
+def _call(task: tuple):
     kind, scene, name, value, t_end, n_save, atol = task
     if kind == "mslab":
         return _mslab_run(scene, name, value, t_end, n_save)
     return _scipy_run(scene, name, value, t_end, atol)
 
 
-def _progress_bar(total: int, progress, desc: str, unit: str = "run"):
-    """``(bar, owned)``: a :class:`mslab.progress.Progress` (by the clock, on a terminal) or the
-    caller's own bar (not closed here), or ``(None, False)`` for ``progress=False``."""
+def _progress_bar(total: int, progress: Any, desc: str, unit: str = "run"):
+    """Return ``(bar, owned)``: a :class:`mslab.progress.Progress` or the caller's bar, or no bar.
+
+    The :class:`mslab.progress.Progress` is drawn by the clock, on a terminal; the caller's
+    own bar is not closed here; ``(None, False)`` for ``progress=False``.
+    """
     from mslab.progress import make_progress
 
     return make_progress(progress, total, desc, unit)
 
 
-def _describe(bar, text: str) -> None:
+def _describe(bar: Any, text: str) -> None:
     if bar is not None and hasattr(bar, "describe"):
         bar.describe(text)
 
 
-def _run_tasks(tasks: list, jobs: int, bar) -> list[dict]:
+def _run_tasks(tasks: list, jobs: int, bar: Any) -> list[dict]:
     """Run error tasks serially or in a process pool (same order as ``tasks``)."""
     results: list = [None] * len(tasks)
     if jobs > 1 and len(tasks) > 1:
@@ -180,12 +189,13 @@ def _run_tasks(tasks: list, jobs: int, bar) -> list[dict]:
     return results
 
 
-def _method_names(methods) -> list[str]:
+def _method_names(methods: Iterable[str | Integrator]) -> list[str]:
     return [get_method(m).name for m in methods]
 
 
-def _dts_per_method(dts, names: list[str]) -> dict[str, list[float]]:
-    """``{method: [dt, ...]}`` from one list for all methods or a dict keyed by method name."""
+def _dts_per_method(dts: Sequence[float] | Mapping[str, Sequence[float]],
+                    names: list[str]) -> dict[str, list[float]]:
+    """Return ``{method: [dt, ...]}`` from one list for all methods or a dict keyed by method name."""
     if not isinstance(dts, Mapping):
         common = [float(dt) for dt in dts]
         return {m: common for m in names}
@@ -196,8 +206,8 @@ def _dts_per_method(dts, names: list[str]) -> dict[str, list[float]]:
     return {m: given[m] for m in names}
 
 
-def whole_dts(dts, t_end: float) -> list[float]:
-    """Each dt moved to the nearest ``t_end / n`` (n a whole number), duplicates removed."""
+def whole_dts(dts: Iterable[float], t_end: float) -> list[float]:
+    """Move each dt to the nearest ``t_end / n`` (n a whole number), duplicates removed."""
     out = []
     for dt in dts:
         n = max(1, round(t_end / float(dt)))

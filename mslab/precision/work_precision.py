@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING
+
 from mslab.precision.reference import reference_solution
 from mslab.precision.runs import (
     _describe,
@@ -17,14 +20,19 @@ from mslab.precision.runs import (
 from mslab.scenes.builder import Scene
 from mslab.simulate import step_count
 
+if TYPE_CHECKING:
+    from mslab.integrators.base import Integrator
+
 #: scipy's ``solve_ivp`` methods drawn as reference curves
 SCIPY_METHODS = ("RK45", "DOP853", "Radau", "BDF")
 #: default tolerance sweep of the scipy curves (``atol = rtol``)
 SCIPY_RTOLS = (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10)
 
 
-def work_precision(scene: Scene, methods, dts, t_end: float | None = None, *,
-                   scipy_methods=(), rtols=SCIPY_RTOLS, atol: float | None = None,
+def work_precision(scene: Scene, methods: Sequence[str | Integrator],
+                   dts: Sequence[float] | Mapping[str, Sequence[float]], t_end: float | None = None, *,
+                   scipy_methods: Sequence[str] = (), rtols: Sequence[float] = SCIPY_RTOLS,
+                   atol: float | None = None,
                    timing: bool = True, repeats: int = 5, budget: float = 1.0, n_save: int = 100,
                    jobs: int = 1, progress: bool | None = False) -> list[dict]:
     """Error, counted work and wall time of every (method, dt), plus scipy reference curves.
@@ -106,7 +114,7 @@ def work_precision(scene: Scene, methods, dts, t_end: float | None = None, *,
     return records
 
 
-def scipy_records(scene: Scene, t_end: float | None = None, methods=SCIPY_METHODS, rtols=SCIPY_RTOLS,
-                  **kwargs) -> list[dict]:
-    """Only the scipy reference curves of :func:`work_precision` (same record fields)."""
+def scipy_records(scene: Scene, t_end: float | None = None, methods: Sequence[str] = SCIPY_METHODS,
+                  rtols: Sequence[float] = SCIPY_RTOLS, **kwargs) -> list[dict]:
+    """Return only the scipy reference curves of :func:`work_precision` (same record fields)."""
     return work_precision(scene, (), (), t_end, scipy_methods=methods, rtols=rtols, **kwargs)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import types
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -21,6 +22,9 @@ from mslab.effects.schema import check_values, describe
 from mslab.errors import SceneError
 from mslab.state import State
 from mslab.system import System
+
+if TYPE_CHECKING:
+    import numpy.typing as npt
 
 
 def plural(n: int, word: str) -> str:
@@ -66,10 +70,12 @@ class Scene:
 
     @property
     def dim(self) -> int:
+        """Number of space dimensions (1, 2 or 3)."""
         return self.system.dim
 
     @property
     def n_particles(self) -> int:
+        """Number of particles."""
         return self.system.n_particles
 
     @property
@@ -78,7 +84,7 @@ class Scene:
         return self.system.effect_names()
 
     def springs(self) -> Springs | None:
-        """The springs effect, if the scene has springs."""
+        """Return the springs effect, if the scene has springs."""
         for e in self.system.effects:
             if isinstance(e, Springs):
                 return e
@@ -97,7 +103,7 @@ class Scene:
                 "save_every": s.save_every}
 
     def with_settings(self, **changes) -> Scene:
-        """A copy of the scene with some run settings replaced."""
+        """Return a copy of the scene with some run settings replaced."""
         return replace(self, settings=replace(self.settings, **changes))
 
 
@@ -126,7 +132,7 @@ class SceneBuilder:
         self.settings = Settings()
 
     # -- particles ----------------------------------------------------------------
-    def _vector(self, value, key: str) -> np.ndarray:
+    def _vector(self, value: npt.ArrayLike, key: str) -> np.ndarray:
         arr = np.asarray(value, dtype=float).reshape(-1)
         if arr.shape != (self.dim,):
             raise SceneError(key, f"expected {self.dim} coordinates, got {arr.size}")
@@ -134,8 +140,9 @@ class SceneBuilder:
             raise SceneError(key, "must be finite numbers")
         return arr
 
-    def add_particle(self, position, mass: float = 1.0, pinned: bool = False, velocity=None) -> int:
-        """Add one mass point; returns its index."""
+    def add_particle(self, position: npt.ArrayLike, mass: float = 1.0, pinned: bool = False,
+                     velocity: npt.ArrayLike | None = None) -> int:
+        """Add one mass point; return its index."""
         if not np.isfinite(mass) or mass <= 0:
             raise SceneError("mass", f"must be > 0, got {mass!r}")
         self._x.append(self._vector(position, "position"))
@@ -145,8 +152,9 @@ class SceneBuilder:
         self._pinned.append(bool(pinned))
         return len(self._x) - 1
 
-    def add_particles(self, positions, mass=1.0, velocity=None) -> np.ndarray:
-        """Add many particles at once; returns their indices (ndarray)."""
+    def add_particles(self, positions: npt.ArrayLike, mass: npt.ArrayLike = 1.0,
+                      velocity: npt.ArrayLike | None = None) -> np.ndarray:
+        """Add many particles at once; return their indices (ndarray)."""
         pos = np.asarray(positions, dtype=float).reshape(-1, self.dim)
         masses = np.broadcast_to(np.asarray(mass, dtype=float), (pos.shape[0],))
         vel = np.zeros_like(pos) if velocity is None else np.broadcast_to(
@@ -160,7 +168,7 @@ class SceneBuilder:
         self._pinned[index] = True
         self._v[index] = np.zeros(self.dim)
 
-    def _check_index(self, i, key: str) -> int:
+    def _check_index(self, i: int, key: str) -> int:
         n = len(self._x)
         if not (isinstance(i, int | np.integer)) or not 0 <= int(i) < n:
             raise SceneError(key, f"particle index {i!r} out of range 0..{n - 1}")
@@ -180,7 +188,7 @@ class SceneBuilder:
         return sorted(set(super().__dir__()) | set(registry.builder_method_names()))
 
     def entries(self, effect: type[Effect]) -> list:
-        """The entries recorded for an effect class (the list its ``build`` receives); mutable."""
+        """Return the entries recorded for an effect class (the list its ``build`` receives); mutable."""
         return self._entries.setdefault(effect, [])
 
     def add_effect(self, effect: type[Effect], **raw) -> None:
@@ -189,22 +197,22 @@ class SceneBuilder:
         effect.add(self, self.check_effect(effect, raw, prefix), prefix)
 
     def check_effect(self, effect: type[Effect], raw: dict, prefix: str, n: int | None = None) -> dict:
-        """The values of ``raw`` checked against ``effect.keys`` (errors named ``prefix + key``).
+        """Return the values of ``raw`` checked against ``effect.keys`` (errors named ``prefix + key``).
 
         ``n``: how many particles indices may refer to (default: all added so far).
         """
         return check_values(effect.keys, raw, prefix, self.dim, self.n_particles if n is None else n)
 
     @staticmethod
-    def check_table(value, key: str) -> dict:
-        """``value`` if it is a table (a dict), else SceneError naming ``key``."""
+    def check_table(value: Any, key: str) -> dict:
+        """Return ``value`` if it is a table (a dict), else raise SceneError naming ``key``."""
         if not isinstance(value, dict):
             raise SceneError(key, f"must be a table ([{key}]), got {describe(value)}")
         return value
 
     @staticmethod
     def error(key: str, reason: str) -> SceneError:
-        """The error to raise for a mistake at ``key``."""
+        """Return the error to raise for a mistake at ``key``."""
         return SceneError(key, reason)
 
     def set_run(self, **settings) -> None:
@@ -214,6 +222,7 @@ class SceneBuilder:
     # -- build --------------------------------------------------------------------
     @property
     def n_particles(self) -> int:
+        """Number of particles added so far."""
         return len(self._x)
 
     def positions(self) -> np.ndarray:

@@ -9,6 +9,7 @@ keys each generator reads), :func:`generator_shape` (checks them), :func:`genera
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -16,6 +17,9 @@ from mslab.effects.schema import describe, integer, number, string, vector
 from mslab.errors import SceneError
 from mslab.scenes.builder import Scene, SceneBuilder
 from mslab.scenes.oscillator import oscillator, oscillator_solution
+
+if TYPE_CHECKING:
+    import numpy.typing as npt
 
 __all__ = ["GENERATORS", "PIN_SETS", "chain", "cloth", "generated_positions", "generator_shape",
            "grid_springs", "lattice", "oscillator", "oscillator_solution", "pin_set"]
@@ -72,7 +76,8 @@ def generator_shape(generator: str, t: Mapping, prefix: str, dim: int) -> dict:
 
 
 def generated_positions(generator: str, shape: tuple[int, ...], dim: int, length: float = 1.0,
-                        size=(1.0, 1.0, 1.0), origin=None, orientation: str = "vertical") -> np.ndarray:
+                        size: npt.ArrayLike = (1.0, 1.0, 1.0), origin: npt.ArrayLike | None = None,
+                        orientation: str = "vertical") -> np.ndarray:
     """Positions (n_particles, dim) of a generator, numbered in C order of ``shape``.
 
     ``chain``: along +x from the origin, ``length`` long. ``grid``/``cloth``: ``shape =
@@ -98,7 +103,7 @@ def generated_positions(generator: str, shape: tuple[int, ...], dim: int, length
 
 
 def pin_set(generator: str, name: str, shape: tuple[int, ...]) -> list[int]:
-    """Indices of a named pinned set of a generator (see :data:`PIN_SETS`)."""
+    """Return the indices of a named pinned set of a generator (see :data:`PIN_SETS`)."""
     if name not in PIN_SETS[generator]:
         raise ValueError(f"generator '{generator}' has no pinned set '{name}'; "
                          f"valid: {', '.join(PIN_SETS[generator])}")
@@ -153,7 +158,7 @@ def grid_springs(shape: tuple[int, ...], kind: str) -> np.ndarray:
 def chain(n: int = 10, dim: int = 2, length: float = 1.0, mass: float = 1.0, stiffness: float = 100.0,
           damping: float = 0.0, gamma: float = 0.0, gravity: float | None = 9.81,
           pin: str = "first") -> Scene:
-    """A chain of ``n`` particles on the x axis joined by structural springs.
+    """Build a chain of ``n`` particles on the x axis joined by structural springs.
 
     Parameters
     ----------
@@ -187,7 +192,7 @@ def cloth(nx: int = 10, ny: int = 10, size: float = 1.0, mass: float = 1.0,
           structural: float = 500.0, shear: float | None = 50.0, bend: float | None = 5.0,
           damping: float = 0.0, gamma: float = 0.0, gravity: float | None = 9.81,
           pin: str = "top_corners") -> Scene:
-    """A square cloth of ``nx * ny`` particles in the x-z plane (3D), hanging from its top.
+    """Build a square cloth of ``nx * ny`` particles in the x-z plane (3D), hanging from its top.
 
     Row ``j = ny - 1`` is the top edge (z = 0); the cloth hangs down to ``z = -size``.
     Spring kinds have their own stiffness; ``None`` (or 0) leaves a kind out.
@@ -211,8 +216,9 @@ def cloth(nx: int = 10, ny: int = 10, size: float = 1.0, mass: float = 1.0,
 
 def lattice(n: tuple[int, int, int] = (4, 4, 4), size: float = 1.0, mass: float = 1.0,
             structural: float = 500.0, shear: float | None = 200.0, bend: float | None = None,
-            damping: float = 0.0, gamma: float = 0.0, origin=(0.0, 0.0, 0.0)) -> Scene:
-    """A 3D block of particles (a soft body) with structural, shear and bend springs."""
+            damping: float = 0.0, gamma: float = 0.0,
+            origin: npt.ArrayLike = (0.0, 0.0, 0.0)) -> Scene:
+    """Build a 3D block of particles (a soft body) with structural, shear and bend springs."""
     b = SceneBuilder(3)
     grid = generated_positions("lattice", tuple(n), 3, size=(size, size, size), origin=origin)
     b.add_particles(grid, mass=mass / grid.shape[0])

@@ -31,7 +31,7 @@ def scene_names() -> list[str]:
 
 
 def scene_path(name_or_path: str | Path) -> Path:
-    """The file of a built-in scene name, or the given path.
+    """Return the file of a built-in scene name, or the given path.
 
     Raises
     ------

@@ -2,13 +2,19 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from mslab.scenes.builder import Scene, SceneBuilder
 
+if TYPE_CHECKING:
+    import numpy.typing as npt
 
-def oscillator_solution(t, u0: float, w0: float, beta: float, v0: float = 0.0):
-    """Closed form of ``u'' + 2 beta u' + w0^2 u = 0``: ``(u(t), u'(t))``.
+
+def oscillator_solution(t: npt.ArrayLike, u0: float, w0: float, beta: float,
+                        v0: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Return the closed form of ``u'' + 2 beta u' + w0^2 u = 0``: ``(u(t), u'(t))``.
 
     Under-, critically and over-damped cases through one complex formula
     ``u = e^{-beta t} (u0 cos(wd t) + (v0 + beta u0) sin(wd t)/wd)``, ``wd = sqrt(w0^2 - beta^2)``.
@@ -54,7 +60,7 @@ def oscillator(stiffness: float = 1.0, mass: float = 1.0, gamma: float = 0.0,
     w0 = float(np.sqrt(stiffness / mass))
     beta = gamma / (2.0 * mass)
 
-    def exact(t):
+    def exact(t: npt.ArrayLike):
         t = np.atleast_1d(np.asarray(t, dtype=float))
         u, du = oscillator_solution(t, displacement, w0, beta, velocity)
         x = np.zeros((t.size, 2, dim))

@@ -34,7 +34,7 @@ def body_sections() -> list[str]:
 
 
 def add_body_effects(builder: SceneBuilder, tables: Mapping, body: Body, prefix: str) -> None:
-    """The per-body effect sections found in ``tables`` (``prefix``: ``""`` or ``bodies[1].``)."""
+    """Return the per-body effect sections found in ``tables`` (``prefix``: ``""`` or ``bodies[1].``)."""
     for name in body_sections():
         if name in tables:
             cls = registry.sections()[name][0]
@@ -42,7 +42,7 @@ def add_body_effects(builder: SceneBuilder, tables: Mapping, body: Body, prefix:
 
 
 def add_scene_effects(builder: SceneBuilder, doc: Mapping) -> None:
-    """The scene-level effect sections of a parsed file, in registry order."""
+    """Return the scene-level effect sections of a parsed file, in registry order."""
     for name, classes in registry.sections().items():
         if classes[0].per_body or name not in doc:
             continue

@@ -70,7 +70,7 @@ def check_settings(settings: Mapping, source: str | None = None, *, dt: float | 
 
 
 def canonical(settings: Mapping) -> dict:
-    """The settings with the method's registry name (``symplectic-euler`` -> ``symplectic_euler``)."""
+    """Return the settings with the method's registry name (``symplectic-euler`` -> ``symplectic_euler``)."""
     out = dict(settings)
     if "method" in out:
         from mslab.integrators.base import get_method

@@ -30,7 +30,7 @@ def parse_scene_text(text: str, source: str | None = None) -> dict:
 
 
 def read_scene_file(path: Path, source: str) -> dict:
-    """The tables of a scene file (``source``: how messages name the file)."""
+    """Return the tables of a scene file (``source``: how messages name the file)."""
     try:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError as err:

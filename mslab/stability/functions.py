@@ -21,11 +21,16 @@ Runge-Kutta method this definition gives ``|R(z)|`` again, so regions are compar
 from __future__ import annotations
 
 import itertools
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from mslab.integrators.base import Integrator, get_method
 from mslab.state import State
+
+if TYPE_CHECKING:
+    import numpy.typing as npt
+    import sympy
 
 
 def tableau(method: str | Integrator) -> tuple[np.ndarray, np.ndarray] | None:
@@ -34,7 +39,7 @@ def tableau(method: str | Integrator) -> tuple[np.ndarray, np.ndarray] | None:
     return (m.A, m.b) if "A" in m.coefficients else None
 
 
-def amplification(method: str | Integrator, z) -> np.ndarray:
+def amplification(method: str | Integrator, z: npt.ArrayLike) -> np.ndarray:
     """Amplification factor ``R(z)``, ``z = dt * lam``, for an array of complex z.
 
     Parameters
@@ -59,7 +64,7 @@ def amplification(method: str | Integrator, z) -> np.ndarray:
     return pick.reshape(z.shape)
 
 
-def amplification_sympy(method: str | Integrator):
+def amplification_sympy(method: str | Integrator) -> sympy.Expr:
     """Exact ``R(z)`` of a Runge-Kutta method as a sympy expression in ``z`` (:mod:`mslab.derive`).
 
     Raises TypeError for methods without a scalar ``R`` (use :func:`amplification_matrix`).
@@ -73,7 +78,8 @@ def amplification_sympy(method: str | Integrator):
     return derive.stability_function(m)
 
 
-def amplification_matrix(method: str | Integrator, h_omega, h_gamma=0.0) -> np.ndarray:
+def amplification_matrix(method: str | Integrator, h_omega: npt.ArrayLike,
+                         h_gamma: npt.ArrayLike = 0.0) -> np.ndarray:
     """One-step map of a method on the damped oscillator ``x'' = -w^2 x - gamma x'``.
 
     Parameters
@@ -107,7 +113,7 @@ def region_grid(method: str | Integrator, re: np.ndarray, im: np.ndarray) -> np.
 
 def measured_amplification_matrix(method: str | Integrator, h_omega: float, h_gamma: float = 0.0,
                                   delta: float = 1e-2) -> np.ndarray:
-    """The one-step map *measured* by running the real integrator on an oscillator scene.
+    """Return the one-step map *measured* by running the real integrator on an oscillator scene.
 
     Independent of :func:`amplification_matrix`: a SceneBuilder scene (pinned anchor at
     ``x = -1``, one free unit mass at ``x = 0``, a 1D spring of rest length 1 and stiffness

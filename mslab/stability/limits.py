@@ -18,6 +18,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable
 from functools import lru_cache
 
 import numpy as np
@@ -34,7 +35,7 @@ S_MAX = 1e6
 _GRID = np.geomspace(S_MIN, S_MAX, 1201)
 
 
-def _ray_limit(rho, chunk: int = 100) -> float:
+def _ray_limit(rho: Callable[[np.ndarray], np.ndarray], chunk: int = 100) -> float:
     """Largest s with ``rho(s') <= 1 + TOL`` for all s' in [S_MIN, s] (0 / inf at the ends)."""
     first = None
     for start in range(0, _GRID.size, chunk):
@@ -146,7 +147,7 @@ def oscillator_limit(method: str | Integrator) -> float:
     return _oscillator_limit(get_method(method))
 
 
-def summary(methods=None) -> list[dict]:
+def summary(methods: Iterable[str | Integrator] | None = None) -> list[dict]:
     """Real interval, imaginary limit and oscillator limit for each method (a table's rows)."""
     from mslab.integrators.base import methods as all_methods
 

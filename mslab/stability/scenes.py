@@ -9,6 +9,7 @@ solver of an implicit tableau converges only while ``dt rho(A) max|lam| < 1``.
 from __future__ import annotations
 
 import weakref
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.linalg as sla
@@ -22,13 +23,16 @@ from mslab.stability.limits import _ray_limit, oscillator_limit
 from mslab.state import State
 from mslab.threads import single_threaded_blas
 
+if TYPE_CHECKING:
+    from mslab.system import System
 
-def _free_dofs(system) -> np.ndarray:
+
+def _free_dofs(system: System) -> np.ndarray:
     return np.flatnonzero(np.repeat(~system.pinned, system.dim))
 
 
 def linearise(scene: Scene, x: np.ndarray | None = None, v: np.ndarray | None = None,
-              contacts: str = "possible"):
+              contacts: str = "possible") -> tuple[sp.spmatrix, sp.spmatrix | None, np.ndarray]:
     """Stiffness and damping Jacobians at a state, restricted to the free degrees of freedom.
 
     Calls each effect's ``jacobians`` directly, so the run's counters (n_jac, n_force)
@@ -139,7 +143,7 @@ def _dt_limit(m: Integrator, lam: np.ndarray) -> float:
         return oscillator_limit(m) / top
     unit = lam / top
 
-    def rho(s):
+    def rho(s: np.ndarray):
         z = s[:, None] * unit[None, :]
         return np.max(np.abs(amplification(m, z)), axis=1)
 
