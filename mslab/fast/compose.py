@@ -1,0 +1,98 @@
+"""Compiled loops for one combination of effect kernels: a generated module, cached by numba.
+
+Each effect with a compiled kernel defines it once, as a plain function in its own module
+(``kernel(x, v, f, *params) -> power``, see :mod:`mslab.effects.base`). For a scene whose
+effects all have kernels, :func:`module_for` writes a module that is the text of the
+template :mod:`mslab.fast.loops` followed by::
+
+    from mslab.effects.springs import spring_kernel as _py_k0
+    _k0 = njit(cache=True)(_py_k0)
+    ...
+    @njit(cache=True)
+    def scene_forces(x, v, f, params):
+        power = _k0(x, v, f, *params[0])
+        power += _k1(x, v, f, *params[1])
+        return power
+
+so numba compiles the loops with the kernels inlined and caches them on disk.
+
+Decision (measured, see ``benchmarks/RESULTS.md``): numba does not cache functions that take
+other compiled functions as arguments (every process recompiled the loops: a cache miss
+each time), so the composition is a generated source file. Its name is a hash of its whole
+text, which includes the sources of the kernels it calls: editing a kernel or the template
+gives a new module and a fresh compile (numba alone would not notice an edited callee).
+Files go to ``$MSLAB_CACHE_DIR`` or ``$XDG_CACHE_HOME/mslab`` (``~/.cache/mslab``), and
+numba's cache to a ``__pycache__`` beside them.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import inspect
+import os
+import sys
+import tempfile
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from types import ModuleType
+
+_MARKER = "# -- scene forces (generated) --"
+_modules: dict[tuple, ModuleType] = {}
+
+
+def cache_dir() -> Path:
+    """Where generated modules are written (created on demand)."""
+    root = os.environ.get("MSLAB_CACHE_DIR")
+    if not root:
+        base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+        root = os.path.join(base, "mslab")
+    path = Path(root) / "fast"
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def _template() -> str:
+    path = Path(__file__).with_name("loops.py")
+    text = path.read_text(encoding="utf-8")
+    return text[: text.index(_MARKER)]
+
+
+def source(kernels: Sequence[Callable]) -> str:
+    """The generated module's text for these kernels, in summation order."""
+    lines = [_template().rstrip() + "\n", "", f"{_MARKER}"]
+    for n, kern in enumerate(kernels):
+        body = inspect.getsource(kern)
+        digest = hashlib.sha256(body.encode()).hexdigest()[:16]
+        lines.append(f"from {kern.__module__} import {kern.__name__} as _py_k{n}  # source {digest}")
+    lines.append("")
+    lines += [f"_k{n} = njit(cache=True)(_py_k{n})" for n in range(len(kernels))]
+    lines += ["", "", "@njit(cache=True)", "def scene_forces(x, v, f, params):",
+              '    """Sum of the effects\' kernels: ``f += sum_e f_e``; returns the dissipated power."""',
+              "    power = 0.0"]
+    lines += [f"    power += _k{n}(x, v, f, *params[{n}])" for n in range(len(kernels))]
+    lines += ["    return power", ""]
+    return "\n".join(lines)
+
+
+def module_for(kernels: Sequence[Callable]) -> ModuleType:
+    """The compiled loops for these kernels (generated, written and imported once per process)."""
+    key = tuple((k.__module__, k.__qualname__) for k in kernels)
+    if key in _modules:
+        return _modules[key]
+    text = source(kernels)
+    name = "mslab_fast_" + hashlib.sha256(text.encode()).hexdigest()[:20]
+    folder = cache_dir()
+    path = folder / f"{name}.py"
+    if not path.exists() or path.read_text(encoding="utf-8") != text:
+        # written once, atomically: rewriting it would change its time stamp and void numba's cache
+        fd, tmp = tempfile.mkstemp(dir=folder, suffix=".tmp")
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    _modules[key] = module
+    return module

@@ -1,0 +1,74 @@
+"""The force model of the compiled path: the scene's effect kernels and their parameters."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mslab.fast import compose
+
+
+def kernel_reason(system) -> str | None:
+    """Why the effects of ``system`` cannot be compiled (None: every effect has a kernel)."""
+    missing = [e.name for e in system.effects if getattr(e, "kernel", None) is None]
+    if missing:
+        return f"effects {missing} have no compiled kernel"
+    return None
+
+
+def _param(value):
+    """A kernel parameter as the compiled code wants it.
+
+    Arrays become C-contiguous; index arrays (int64) whose values fit are narrowed to int32
+    (half the memory traffic of a spring's indices); bools become ints; floats stay floats.
+    """
+    if isinstance(value, np.ndarray):
+        if value.dtype.kind in "iu":
+            small = value.size == 0 or (int(value.min()) >= -(2**31) and int(value.max()) < 2**31)
+            return np.ascontiguousarray(value, dtype=np.int32 if small else np.int64)
+        if value.dtype.kind == "b":
+            return np.ascontiguousarray(value)
+        return np.ascontiguousarray(value, dtype=np.float64)
+    if isinstance(value, bool | np.bool_):
+        return int(value)
+    return value
+
+
+class ForceModel:
+    """The effects of a System as compiled kernels with their parameters.
+
+    Attributes
+    ----------
+    kernels : tuple of callable
+        The effects' ``kernel`` functions, in the System's summation order.
+    params : tuple of tuple
+        Each effect's :meth:`~mslab.effects.Effect.kernel_params`, as the kernels take them.
+    inv_mass : ndarray, shape (n_particles,)
+        ``1/m`` (0 for pinned particles).
+    module : module
+        The compiled loops for these kernels (:func:`mslab.fast.compose.module_for`).
+    """
+
+    def __init__(self, system):
+        reason = kernel_reason(system)
+        if reason is not None:
+            raise ValueError(reason)
+        self.kernels = tuple(type(e).kernel for e in system.effects)
+        self.params = tuple(tuple(_param(p) for p in e.kernel_params()) for e in system.effects)
+        self.inv_mass = np.ascontiguousarray(system.inv_mass, dtype=np.float64)
+        self.module = compose.module_for(self.kernels)
+
+    def rhs(self, x: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, float]:
+        """Acceleration (n_particles, dim) and dissipated power: ``System.rhs`` compiled, not counted."""
+        a = np.empty(np.shape(x))
+        p = self.module.rhs(_f64(x), _f64(v), a, self.inv_mass, self.params)
+        return a, float(p)
+
+    def force(self, x: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, float]:
+        """Total force (n_particles, dim) and dissipated power from the kernels, not counted."""
+        f = np.zeros(np.shape(x))
+        p = self.module.scene_forces(_f64(x), _f64(v), f, self.params)
+        return f, float(p)
+
+
+def _f64(a) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=np.float64)

@@ -1,0 +1,96 @@
+"""The compiled steps of ``simulate``: chunks of the family's loop over the scene's kernels."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mslab.fast.model import ForceModel
+from mslab.state import State
+
+
+class Stepper:
+    """Runs the steps of ``simulate`` in compiled chunks (built by :func:`mslab.fast.stepper`).
+
+    The loop is the one the method names (``Integrator.compiled``): ``"explicit_rk"`` over
+    ``(A, b)``, ``"splitting"`` over ``(drift, kick)``, ``"verlet"`` or ``"leapfrog"``.
+    Counts ``n_force`` on the System exactly as the numpy loop does (the loops return it).
+    """
+
+    #: most steps per compiled call
+    max_chunk: int = 10000
+
+    def __init__(self, system, integrator):
+        self.system = system
+        self.integrator = integrator
+        self.model = ForceModel(system)
+        self.loop, arrays = integrator.compiled
+        self.arrays = tuple(np.ascontiguousarray(a, dtype=np.float64) for a in arrays)
+        work = system.n_particles + sum(np.size(p[0]) for p in self.model.params if p and np.ndim(p[0]))
+        #: steps per compiled call: about 10^7 particle+element updates (0.1 s), so Ctrl-C and the
+        #: progress bar answer within a fraction of a second
+        self.chunk = int(min(self.max_chunk, max(1, 10**7 // max(1, work * integrator.n_stages))))
+        self._x = self._v = None
+        self._mem = None
+
+    def advance(self, state: State, dt: float, step: int, stop: int, saved: np.ndarray, k: int,
+                xs: np.ndarray, vs: np.ndarray, ds: np.ndarray, limit: float):
+        """Steps ``step+1 .. stop`` from ``state`` (the state after ``step``).
+
+        Fills ``xs, vs, ds`` at the indices ``saved[k:]`` reached. Returns
+        ``(step, k, state, ok)``; ``ok`` is False when step ``step`` blew up.
+        """
+        mod = self.model.module
+        if self._x is None:
+            self._x = np.array(state.x, dtype=np.float64, order="C")
+            self._v = np.array(state.v, dtype=np.float64, order="C")
+            self._mem = self._memory(state)
+        x, v = self._x, self._v
+        common = (float(dt), step, stop, saved, k, xs, vs, ds, float(limit), self.model.inv_mass,
+                  self.model.params)
+        ig, system = self.integrator, self.system
+        if self.loop == "explicit_rk":
+            A, b = self.arrays
+            out = mod.run_explicit_rk(x, v, float(state.dissipated), A, b, *common)
+        elif self.loop == "splitting":
+            drift, kick = self.arrays
+            mem_a, mem_p = self._mem
+            reuse = bool(ig.fsal and not system.velocity_dependent)
+            symmetric = bool(ig.symmetric_kicks and system.velocity_dependent)
+            out = mod.run_splitting(x, v, float(state.dissipated), drift, kick, reuse, symmetric,
+                                    mem_a, mem_p, int(ig.order), *common)
+        else:
+            mem_x, mem_a, mem_p = self._mem
+            code = mod.VERLET if self.loop == "verlet" else mod.LEAPFROG
+            out = mod.run_two_step(code, x, v, float(state.dissipated), mem_x, mem_a, mem_p, *common[:9],
+                                   bool(system.velocity_dependent), *common[9:])
+        new_step, k, dissipated, status, n_force = out
+        system.counters.n_force += n_force
+        return new_step, k, State(x.copy(), v.copy(), self._memory_tuple(), dissipated), status == mod.OK
+
+    def _memory(self, state: State):
+        """Memory arrays of the loop from the numpy ``start``."""
+        shape = state.x.shape
+        if self.loop == "splitting":
+            mem_a, mem_p = np.zeros(shape), np.zeros(1)
+            if state.memory:
+                mem_a[:], mem_p[0] = state.memory
+            return mem_a, mem_p
+        mem_x, mem_a, mem_p = np.zeros(shape), np.zeros(shape), np.zeros(1)
+        if self.loop == "verlet":
+            mem_x[:], mem_p[0] = state.memory
+        elif self.loop == "leapfrog":
+            mem_x[:], mem_a[:], mem_p[0] = state.memory
+        return mem_x, mem_a, mem_p
+
+    def _memory_tuple(self) -> tuple:
+        if self.loop == "explicit_rk":
+            return ()
+        if self.loop == "splitting":
+            if not (self.integrator.fsal and not self.system.velocity_dependent):
+                return ()
+            mem_a, mem_p = (m.copy() for m in self._mem)
+            return (mem_a, float(mem_p[0]))
+        mem_x, mem_a, mem_p = (m.copy() for m in self._mem)
+        if self.loop == "verlet":
+            return (mem_x, float(mem_p[0]))
+        return (mem_x, mem_a, float(mem_p[0]))
