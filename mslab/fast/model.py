@@ -33,17 +33,38 @@ def _param(value):
     return value
 
 
+def is_constant(effect, n_particles: int, dim: int) -> bool:
+    """Whether the effect's force is one fixed array for the whole run (gravity).
+
+    By the effect protocol: an external force (not ``internal``) that depends on neither
+    position nor velocity (both Jacobian blocks ``None``, "identically zero") and
+    dissipates nothing. Internal forces (springs) are never asked: their Jacobians cost.
+    """
+    if effect.internal or effect.velocity_dependent or effect.dissipative:
+        return False
+    zeros = np.zeros((n_particles, dim))
+    return effect.jacobians(zeros, zeros) == (None, None)
+
+
 class ForceModel:
     """The effects of a System as compiled kernels with their parameters.
+
+    Constant forces (:func:`is_constant`: gravity) are summed once into ``f0`` from the
+    effects' own ``force``; the loops start every force evaluation from ``f0`` (restored in
+    the pass that reads the forces), so a constant effect costs no pass per step.
 
     Attributes
     ----------
     kernels : tuple of callable
-        The effects' ``kernel`` functions, in the System's summation order.
+        The ``kernel`` functions of the other effects, in the System's summation order.
     params : tuple of tuple
-        Each effect's :meth:`~mslab.effects.Effect.kernel_params`, as the kernels take them.
+        Their :meth:`~mslab.effects.Effect.kernel_params`, as the kernels take them.
+    f0 : ndarray, shape (n_particles, dim)
+        The sum of the constant forces.
     inv_mass : ndarray, shape (n_particles,)
         ``1/m`` (0 for pinned particles).
+    w : ndarray, shape (n_particles * dim,)
+        ``inv_mass`` repeated per coordinate (the loops' flat passes).
     module : module
         The compiled loops for these kernels (:func:`mslab.fast.compose.module_for`).
     """
@@ -52,20 +73,28 @@ class ForceModel:
         reason = kernel_reason(system)
         if reason is not None:
             raise ValueError(reason)
-        self.kernels = tuple(type(e).kernel for e in system.effects)
-        self.params = tuple(tuple(_param(p) for p in e.kernel_params()) for e in system.effects)
+        shape = (system.n_particles, system.dim)
+        constant = [is_constant(e, system.n_particles, system.dim) for e in system.effects]
+        varying = [e for e, c in zip(system.effects, constant, strict=True) if not c]
+        self.f0 = np.zeros(shape)
+        for e, c in zip(system.effects, constant, strict=True):
+            if c:
+                self.f0 += e.force(np.zeros(shape), np.zeros(shape))
+        self.kernels = tuple(type(e).kernel for e in varying)
+        self.params = tuple(tuple(_param(p) for p in e.kernel_params()) for e in varying)
         self.inv_mass = np.ascontiguousarray(system.inv_mass, dtype=np.float64)
+        self.w = np.repeat(self.inv_mass, system.dim)
         self.module = compose.module_for(self.kernels)
 
     def rhs(self, x: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, float]:
         """Acceleration (n_particles, dim) and dissipated power: ``System.rhs`` compiled, not counted."""
         a = np.empty(np.shape(x))
-        p = self.module.rhs(_f64(x), _f64(v), a, self.inv_mass, self.params)
+        p = self.module.rhs(_f64(x), _f64(v), a, self.w, self.f0, self.params)
         return a, float(p)
 
     def force(self, x: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, float]:
         """Total force (n_particles, dim) and dissipated power from the kernels, not counted."""
-        f = np.zeros(np.shape(x))
+        f = self.f0.copy()
         p = self.module.scene_forces(_f64(x), _f64(v), f, self.params)
         return f, float(p)
 

@@ -26,6 +26,7 @@ class Stepper:
         self.loop, arrays = integrator.compiled
         self.arrays = tuple(np.ascontiguousarray(a, dtype=np.float64) for a in arrays)
         work = system.n_particles + sum(np.size(p[0]) for p in self.model.params if p and np.ndim(p[0]))
+        # (particles + the first array of each kernel: springs, anchors)
         #: steps per compiled call: about 10^7 particle+element updates (0.1 s), so Ctrl-C and the
         #: progress bar answer within a fraction of a second
         self.chunk = int(min(self.max_chunk, max(1, 10**7 // max(1, work * integrator.n_stages))))
@@ -45,8 +46,8 @@ class Stepper:
             self._v = np.array(state.v, dtype=np.float64, order="C")
             self._mem = self._memory(state)
         x, v = self._x, self._v
-        common = (float(dt), step, stop, saved, k, xs, vs, ds, float(limit), self.model.inv_mass,
-                  self.model.params)
+        common = (float(dt), step, stop, saved, k, xs, vs, ds, float(limit), self.model.w,
+                  self.model.f0, self.model.params)
         ig, system = self.integrator, self.system
         if self.loop == "explicit_rk":
             A, b = self.arrays
