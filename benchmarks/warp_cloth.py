@@ -21,14 +21,17 @@ What is compared, per cloth size:
   to the size of the positions); a mismatch stops the benchmark;
 * **timing**: compile time excluded (a warm-up of both first), interleaved repeats (Warp,
   then mslab, back to back, so a burst of load from other jobs hits both), the ratio
-  mslab/Warp per repeat, its median with min and max; the machine, library versions and
-  the load average recorded;
+  mslab/Warp per repeat, its median with min and max, on two clocks: the process's CPU
+  time (what the step costs one core; steady on a shared machine) and wall time (what a
+  user waits; moved by other jobs); the machine, library versions and the load average
+  recorded;
 * **bandwidth**: the spring kernel alone (mslab's ``spring_kernel`` as compiled by
   ``mslab.fast``), in bytes per spring as issue 14 counts them (two int64 indices,
   stiffness and rest length, read ``x_i, x_j``, write ``f_i, f_j``: 128 bytes), against a
   STREAM-like copy (``b[i] = a[i]`` over 2 x 128 MiB, 16 bytes per element) measured in
-  the same run. Both single-threaded: Warp's CPU backend runs a launch on one thread,
-  and so does mslab's loop.
+  the same run, interleaved (copy, then kernel, per repeat, in CPU time; the share per
+  repeat, its median with min and max). Everything single-threaded: Warp's CPU backend
+  runs a launch on one thread, and so does mslab's loop.
 """
 
 
@@ -150,8 +153,7 @@ def mslab_stepper(scene, x0, v0, dt: float):
     return step, (lambda: (state["s"].x, state["s"].v)), runner
 
 
-def copy_bandwidth(repeats: int = 7) -> float:
-    """STREAM-like copy ``b[i] = a[i]`` (one thread): bytes per second, counting 16 per element."""
+def _copy_kernel():
     from numba import njit
 
     @njit(cache=False)
@@ -159,33 +161,42 @@ def copy_bandwidth(repeats: int = 7) -> float:
         for p in range(a.shape[0]):
             b[p] = a[p]
 
-    a = np.random.default_rng(0).random(2**24)  # 128 MiB each: far beyond the caches
-    b = np.empty_like(a)
-    copy(a, b)
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        copy(a, b)
-        times.append(time.perf_counter() - t)
-    return 16 * a.size / min(times)  # best of repeats, as STREAM reports
+    return copy
 
 
-def spring_kernel_time(runner, x, v, repeats: int) -> float:
-    """Median seconds of one call of mslab's compiled spring kernel alone (forces into a buffer)."""
-    mod, params = runner.model.module, runner.model.params
-    kernels = runner.model.kernels
+def bandwidth_share(runner, x, v, repeats: int) -> dict:
+    """The spring kernel's bytes per second as a share of a STREAM-like copy, interleaved.
+
+    Each repeat times one copy ``b[i] = a[i]`` over 2 x 128 MiB (16 bytes per element, far
+    beyond the caches) and then mslab's compiled spring kernel alone (forces into a buffer,
+    128 bytes per spring), back to back in CPU time; the share is taken per repeat.
+    """
+    mod, params, kernels = runner.model.module, runner.model.params, runner.model.kernels
     n = next(q for q, kern in enumerate(kernels) if kern.__name__ == "spring_kernel")
     kern = getattr(mod, f"_k{n}")
+    m = params[n][0].size
     f = np.zeros_like(x)
+    copy = _copy_kernel()
+    a = np.random.default_rng(0).random(2**24)
+    b = np.empty_like(a)
+    copy(a, b)
     kern(x, v, f, *params[n])
     number = max(1, int(0.05 / max(1e-7, _once(lambda: kern(x, v, f, *params[n])))))
-    times = []
+    t_copy, t_spring = [], []
     for _ in range(repeats):
-        t = time.perf_counter()
+        t = time.process_time()
+        copy(a, b)
+        t_copy.append(time.process_time() - t)
+        t = time.process_time()
         for _ in range(number):
             kern(x, v, f, *params[n])
-        times.append((time.perf_counter() - t) / number)
-    return statistics.median(times)
+        t_spring.append((time.process_time() - t) / number)
+    shares = [(BYTES_PER_SPRING * m / ts) / (16 * a.size / tc)
+              for tc, ts in zip(t_copy, t_spring, strict=True)]
+    return {"copy_bytes_per_s": 16 * a.size / statistics.median(t_copy),
+            "spring_kernel_ns_per_spring": 1e9 * statistics.median(t_spring) / m,
+            "spring_kernel_bytes_per_s": BYTES_PER_SPRING * m / statistics.median(t_spring),
+            "share_median": statistics.median(shares), "share_min": min(shares), "share_max": max(shares)}
 
 
 def _once(fn) -> float:
@@ -206,30 +217,35 @@ def compare(wp, n: int, repeats: int, dt: float = 1e-5) -> dict:
     m_step(2)  # warm-up: compile (Warp) and load or compile (mslab) outside the timings
     per = max(_once(lambda: w_step(3)), _once(lambda: m_step(3))) / 3  # both 5 steps ahead of x0
     block = max(5, int(0.2 / per))
-    tw, tm, ratios = [], [], []
+    wall = {"warp": [], "mslab": []}
+    cpu = {"warp": [], "mslab": []}
     for _ in range(repeats):
-        a = _once(lambda: w_step(block)) / block
-        b = _once(lambda: m_step(block)) / block
-        tw.append(a)
-        tm.append(b)
-        ratios.append(b / a)
+        for name, fn in (("warp", w_step), ("mslab", m_step)):
+            t0, c0 = time.perf_counter(), time.process_time()
+            fn(block)
+            wall[name].append((time.perf_counter() - t0) / block)
+            cpu[name].append((time.process_time() - c0) / block)
     xw, vw = w_state()
     xm, vm = m_state()
     scale = max(1.0, float(np.max(np.abs(xm))))
     dx = float(np.max(np.abs(xw - xm))) / scale
     dv = float(np.max(np.abs(vw - vm))) / max(1.0, float(np.max(np.abs(vm))))
     if not (dx <= 1e-12 and dv <= 1e-12):
-        raise AssertionError(f"mslab and Warp disagree on the {n}x{n} cloth: |dx| = {dx:.3g}, |dv| = {dv:.3g}")
-    t_spring = spring_kernel_time(runner, xm, vm, repeats)
-    return {"n": n, "n_particles": int(x0.shape[0]), "n_springs": int(m), "dt": dt,
-            "steps_per_block": block, "repeats": repeats, "steps_compared": 5 + repeats * block,
-            "max_rel_difference_x": dx, "max_rel_difference_v": dv,
-            "warp_step_s": statistics.median(tw), "mslab_step_s": statistics.median(tm),
-            "ratio_median": statistics.median(ratios), "ratio_min": min(ratios), "ratio_max": max(ratios),
-            "warp_ns_per_spring": 1e9 * statistics.median(tw) / m,
-            "mslab_ns_per_spring": 1e9 * statistics.median(tm) / m,
-            "spring_kernel_ns_per_spring": 1e9 * t_spring / m,
-            "spring_kernel_bytes_per_s": BYTES_PER_SPRING * m / t_spring}
+        raise AssertionError(f"mslab and Warp disagree on the {n}x{n} cloth: "
+                             f"|dx| = {dx:.3g}, |dv| = {dv:.3g}")
+    share = bandwidth_share(runner, xm, vm, repeats)
+    out = {"n": n, "n_particles": int(x0.shape[0]), "n_springs": int(m), "dt": dt,
+           "steps_per_block": block, "repeats": repeats, "steps_compared": 5 + repeats * block,
+           "max_rel_difference_x": dx, "max_rel_difference_v": dv, "bandwidth": share}
+    for clock, times in (("wall", wall), ("cpu", cpu)):
+        ratios = [b / a for a, b in zip(times["warp"], times["mslab"], strict=True)]
+        out[clock] = {"warp_step_s": statistics.median(times["warp"]),
+                      "mslab_step_s": statistics.median(times["mslab"]),
+                      "ratio_median": statistics.median(ratios), "ratio_min": min(ratios),
+                      "ratio_max": max(ratios),
+                      "warp_ns_per_spring": 1e9 * statistics.median(times["warp"]) / m,
+                      "mslab_ns_per_spring": 1e9 * statistics.median(times["mslab"]) / m}
+    return out
 
 
 def run(quick: bool = False, sizes=(100, 300)) -> dict:
@@ -241,14 +257,8 @@ def run(quick: bool = False, sizes=(100, 300)) -> dict:
         return doc
     doc["machine"]["warp"] = wp.__version__
     repeats = 5 if quick else 11
-    bw = [copy_bandwidth()]
     for n in sizes:
         doc[f"cloth_{n}"] = compare(wp, n, repeats)
-    bw.append(copy_bandwidth())
-    doc["copy_bytes_per_s"] = max(bw)
-    for n in sizes:
-        c = doc[f"cloth_{n}"]
-        c["spring_kernel_bandwidth_fraction"] = c["spring_kernel_bytes_per_s"] / doc["copy_bytes_per_s"]
     doc["load_average"] = list(os.getloadavg())
     return doc
 
@@ -257,17 +267,26 @@ def table(doc: dict) -> str:
     """The comparison as Markdown (or the reason it was skipped)."""
     if "skipped" in doc:
         return f"Warp comparison skipped: {doc['skipped']}."
-    rows = ["| cloth | springs | Warp step (ms) | mslab step (ms) | mslab / Warp: median (min-max) | "
-            "ns/spring Warp / mslab | spring kernel ns/spring | share of copy bandwidth | max rel. diff |",
-            "|---|---|---|---|---|---|---|---|---|"]
-    for key in sorted(k for k in doc if k.startswith("cloth_")):
+    rows = ["| cloth | springs | clock | Warp step (ms) | mslab step (ms) | mslab / Warp: median (min-max) "
+            "| ns/spring Warp / mslab |", "|---|---|---|---|---|---|---|"]
+    keys = sorted((k for k in doc if k.startswith("cloth_")), key=lambda k: doc[k]["n"])
+    for key in keys:
         c = doc[key]
-        rows.append(
-            f"| {c['n']}x{c['n']} | {c['n_springs']} | {1e3 * c['warp_step_s']:.3g} | {1e3 * c['mslab_step_s']:.3g} | "
-            f"{c['ratio_median']:.3f} ({c['ratio_min']:.3f}-{c['ratio_max']:.3f}) | "
-            f"{c['warp_ns_per_spring']:.3g} / {c['mslab_ns_per_spring']:.3g} | "
-            f"{c['spring_kernel_ns_per_spring']:.3g} | {100 * c['spring_kernel_bandwidth_fraction']:.0f} % | "
-            f"{max(c['max_rel_difference_x'], c['max_rel_difference_v']):.1e} |")
+        for clock in ("cpu", "wall"):
+            t = c[clock]
+            rows.append(
+                f"| {c['n']}x{c['n']} | {c['n_springs']} | {clock} | {1e3 * t['warp_step_s']:.3g} | "
+                f"{1e3 * t['mslab_step_s']:.3g} | {t['ratio_median']:.3f} ({t['ratio_min']:.3f}-"
+                f"{t['ratio_max']:.3f}) | {t['warp_ns_per_spring']:.3g} / {t['mslab_ns_per_spring']:.3g} |")
+    rows += ["", "| cloth | copy bandwidth | spring kernel alone | at 128 B/spring | share of copy "
+             "bandwidth: median (min-max) | max rel. difference mslab - Warp |", "|---|---|---|---|---|---|"]
+    for key in keys:
+        c, bw = doc[key], doc[key]["bandwidth"]
+        rows.append(f"| {c['n']}x{c['n']} | {bw['copy_bytes_per_s'] / 1e9:.1f} GB/s | "
+                    f"{bw['spring_kernel_ns_per_spring']:.3g} ns/spring | "
+                    f"{bw['spring_kernel_bytes_per_s'] / 1e9:.1f} GB/s | {100 * bw['share_median']:.0f} % "
+                    f"({100 * bw['share_min']:.0f}-{100 * bw['share_max']:.0f} %) | "
+                    f"{max(c['max_rel_difference_x'], c['max_rel_difference_v']):.1e} |")
     return "\n".join(rows)
 
 
@@ -279,9 +298,10 @@ def main() -> int:
     doc = run(args.quick, tuple(args.sizes))
     (HERE / "warp_results.json").write_text(json.dumps(doc, indent=2) + "\n")
     print(table(doc))
-    if "copy_bytes_per_s" in doc:
-        print(f"copy bandwidth {doc['copy_bytes_per_s'] / 1e9:.1f} GB/s; load average "
-              f"{', '.join(f'{x:.2f}' for x in doc['load_average'])}")
+    if "load_average" in doc:
+        load = ", ".join(f"{x:.2f}" for x in doc["load_average"])
+        print(f"load average {load} on {doc['machine']['cores']} cores; {doc['machine']['cpu']}, "
+              f"warp {doc['machine'].get('warp')}")
     return 0
 
 
