@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 
 from mslab.effects.base import BuildContext, Effect
 from mslab.effects.registry import register
@@ -62,6 +61,8 @@ class Damping(Effect):
         return self.gamma * float(np.sum(v * v))
 
     def jacobians(self, x, v):
+        import scipy.sparse as sp  # on first use: `import mslab` stays cheap
+
         return None, -self.gamma * sp.identity(self.n * self.dim, format="csr")
 
     def kernel_params(self) -> tuple:

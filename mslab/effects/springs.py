@@ -7,13 +7,17 @@ recorded by :mod:`mslab.effects.spring_table` (duplicates, rest lengths, labels)
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import scipy.sparse as sp
 
 from mslab.effects.base import BuildContext, Effect
 from mslab.effects.registry import register
 from mslab.effects.schema import Key, check_keys
 from mslab.effects.spring_table import SPRING_KINDS, SpringTable
+
+if TYPE_CHECKING:  # scipy.sparse is imported on first use: `import mslab` stays cheap
+    import scipy.sparse as sp
 
 
 def scatter_pairs(f: np.ndarray, i: np.ndarray, j: np.ndarray, n: int) -> np.ndarray:
@@ -221,6 +225,8 @@ class Springs(Effect):
         COO -> CSR conversion is done on the first call only: later calls sum the block
         entries into the stored slots (``np.bincount`` over a precomputed index map).
         """
+        import scipy.sparse as sp  # on first use: `import mslab` stays cheap
+
         m, dim, _ = blocks.shape
         if self._csr is None or self._csr[0] != dim:
             self._csr = (dim,) + self._pattern(dim)
