@@ -75,15 +75,31 @@ def source(kernels: Sequence[Callable]) -> str:
     return "\n".join(lines)
 
 
+def _key(kernels: Sequence[Callable]) -> tuple:
+    return tuple((k.__module__, k.__qualname__) for k in kernels)
+
+
+def _path(text: str) -> tuple[str, Path]:
+    name = "mslab_fast_" + hashlib.sha256(text.encode()).hexdigest()[:20]
+    return name, cache_dir() / f"{name}.py"
+
+
+def state(kernels: Sequence[Callable]) -> str:
+    """``"loaded"`` (in this process), ``"cached"`` (generated before: numba loads it from its
+    cache) or ``"new"`` (numba compiles it: seconds)."""
+    if _key(kernels) in _modules:
+        return "loaded"
+    return "cached" if _path(source(kernels))[1].exists() else "new"
+
+
 def module_for(kernels: Sequence[Callable]) -> ModuleType:
     """The compiled loops for these kernels (generated, written and imported once per process)."""
-    key = tuple((k.__module__, k.__qualname__) for k in kernels)
+    key = _key(kernels)
     if key in _modules:
         return _modules[key]
     text = source(kernels)
-    name = "mslab_fast_" + hashlib.sha256(text.encode()).hexdigest()[:20]
-    folder = cache_dir()
-    path = folder / f"{name}.py"
+    name, path = _path(text)
+    folder = path.parent
     if not path.exists() or path.read_text(encoding="utf-8") != text:
         # written once, atomically: rewriting it would change its time stamp and void numba's cache
         fd, tmp = tempfile.mkstemp(dir=folder, suffix=".tmp")

@@ -46,6 +46,13 @@ def is_constant(effect, n_particles: int, dim: int) -> bool:
     return effect.jacobians(zeros, zeros) == (None, None)
 
 
+def plan(system) -> tuple[list[bool], tuple]:
+    """Which effects are constant (:func:`is_constant`) and the kernels of the others."""
+    constant = [is_constant(e, system.n_particles, system.dim) for e in system.effects]
+    kernels = tuple(type(e).kernel for e, c in zip(system.effects, constant, strict=True) if not c)
+    return constant, kernels
+
+
 class ForceModel:
     """The effects of a System as compiled kernels with their parameters.
 
@@ -74,13 +81,12 @@ class ForceModel:
         if reason is not None:
             raise ValueError(reason)
         shape = (system.n_particles, system.dim)
-        constant = [is_constant(e, system.n_particles, system.dim) for e in system.effects]
+        constant, self.kernels = plan(system)
         varying = [e for e, c in zip(system.effects, constant, strict=True) if not c]
         self.f0 = np.zeros(shape)
         for e, c in zip(system.effects, constant, strict=True):
             if c:
                 self.f0 += e.force(np.zeros(shape), np.zeros(shape))
-        self.kernels = tuple(type(e).kernel for e in varying)
         self.params = tuple(tuple(_param(p) for p in e.kernel_params()) for e in varying)
         self.inv_mass = np.ascontiguousarray(system.inv_mass, dtype=np.float64)
         self.w = np.repeat(self.inv_mass, system.dim)
