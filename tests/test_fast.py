@@ -232,6 +232,25 @@ def test_auto_runs_short_runs_in_numpy_without_loading_numba():
     assert _in_fresh_process(code) == "True"
 
 
+def test_import_mslab_loads_neither_scipy_nor_numba():
+    """``import mslab`` stays cheap: scipy, numba and the stability package load on first use."""
+    code = ("import sys, mslab; print(sorted(m for m in ('scipy', 'numba', 'mslab.stability', 'sympy') "
+            "if m in sys.modules))")
+    assert _in_fresh_process(code) == "[]"
+    code = "import mslab; print(mslab.stability.imag_limit.__module__.startswith('mslab.stability'))"
+    assert _in_fresh_process(code) == "True"
+
+
+def test_constant_forces_are_summed_once():
+    """Gravity is constant by the effect protocol (no Jacobian blocks): it leaves the kernels for f0."""
+    scene = generators.chain(5, dim=3, stiffness=100.0, gamma=0.2)
+    model = fast.ForceModel(scene.system)
+    names = [k.__name__ for k in model.kernels]
+    assert "gravity_kernel" not in names and "spring_kernel" in names and "damping_kernel" in names
+    gravity = next(e for e in scene.system.effects if e.name == "gravity")
+    assert np.array_equal(model.f0, gravity.force(scene.state0.x, scene.state0.v))
+
+
 @pytest.mark.slow
 def test_generated_loops_are_cached_across_processes(tmp_path):
     """The composed module compiles once; a second process loads every loop from numba's cache."""

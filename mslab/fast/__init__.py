@@ -35,8 +35,8 @@ BACKENDS = ("auto", "numba", "numpy")
 #: benchmarks/RESULTS.md): loading them from numba's cache (with numba's import), or
 #: compiling them (a combination of kernels never run on this machine). ``auto`` takes
 #: numpy when the numpy loop is predicted to finish sooner.
-LOAD_SECONDS = 0.6
-COMPILE_SECONDS = 8.0
+LOAD_SECONDS = 0.75
+COMPILE_SECONDS = 6.5
 
 
 def check_backend(name: str | None) -> str:
