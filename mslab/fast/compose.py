@@ -92,6 +92,25 @@ def state(kernels: Sequence[Callable]) -> str:
     return "cached" if _path(source(kernels))[1].exists() else "new"
 
 
+def _write_once(path: Path, text: str) -> None:
+    """Write ``path`` atomically, never replacing a complete copy another process wrote first
+    (a new time stamp would void numba's cache of it)."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        try:
+            os.link(tmp, path)  # fails if the file exists: the first complete copy stays
+        except FileExistsError:
+            if path.read_text(encoding="utf-8") != text:  # a damaged copy: replace it
+                os.replace(tmp, path)
+        except OSError:  # no hard links on this file system
+            os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
 def module_for(kernels: Sequence[Callable]) -> ModuleType:
     """The compiled loops for these kernels (generated, written and imported once per process)."""
     key = _key(kernels)
@@ -99,13 +118,8 @@ def module_for(kernels: Sequence[Callable]) -> ModuleType:
         return _modules[key]
     text = source(kernels)
     name, path = _path(text)
-    folder = path.parent
     if not path.exists() or path.read_text(encoding="utf-8") != text:
-        # written once, atomically: rewriting it would change its time stamp and void numba's cache
-        fd, tmp = tempfile.mkstemp(dir=folder, suffix=".tmp")
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
+        _write_once(path, text)
     spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module
