@@ -170,8 +170,30 @@ def warp_section() -> list[str]:
             "of the copy bandwidth falls when other jobs share the core (quick runs the same day "
             "at load averages 4.6-6 gave 44-67 % at 300x300 and step ratios 0.84-0.87). "
             "The share's min-max spans such bursts.",
-            "- Not built: the gather formulation (CSR adjacency, parallel loops); there is no "
-            "multi-core figure. Both codes run on one thread here.", ""]
+            "- Both codes run on one thread here. The gather formulation (CSR adjacency, parallel "
+            "loops) was measured, not built into the library: see the next section.", ""] + gather_section()
+
+
+def gather_section() -> list[str]:
+    """RESULTS.md's section on the gather formulation, from ``gather_results.json``."""
+    from benchmarks import gather
+
+    path = HERE / "gather_results.json"
+    if not path.exists():
+        return []
+    doc = json.loads(path.read_text())
+    load = ", ".join(f"{x:.2f}" for x in doc.get("load_average", []))
+    return ["## Gather instead of scatter? (issue 14)", "",
+            f"Measured {doc['machine']['date']} by `benchmarks/gather.py` ({doc['threads']} threads; load "
+            f"average {load}): a gather kernel (each particle sums its incident springs through a "
+            "CSR adjacency, `prange` over particles) against mslab's scatter kernel on the 300x300 "
+            f"cloth, interleaved, wall time. Equal to the scatter to {doc['max_rel_difference']:.1e}; "
+            f"identical for 1 and {doc['threads']} threads: {doc['same_for_any_thread_count']}.", "",
+            gather.table(doc), "",
+            "Decision: not built into the library. Gathering computes every spring twice, so one "
+            "thread is slower than the scatter, and on this shared 2-core machine the second thread "
+            "does not pay that back. A machine with more free cores may decide otherwise: the "
+            "script measures it.", ""]
 
 
 if __name__ == "__main__":
