@@ -105,7 +105,9 @@ def stepper(system, integrator, backend: str | None = None, n_steps: int | None 
         return None
     if name == "auto" and n_steps is not None and not worth_compiling(system, integrator, n_steps, state0):
         return None
-    return Stepper(system, integrator)
+    runner = Stepper(system, integrator)
+    runner.warm()  # loading or compiling is not stepping: out of the run's wall time
+    return runner
 
 
 __all__ = ["BACKENDS", "COMPILE_SECONDS", "ForceModel", "LOAD_SECONDS", "Stepper", "check_backend", "stepper",

@@ -40,36 +40,48 @@ class Stepper:
         Fills ``xs, vs, ds`` at the indices ``saved[k:]`` reached. Returns
         ``(step, k, state, ok)``; ``ok`` is False when step ``step`` blew up.
         """
-        mod = self.model.module
         if self._x is None:
             self._x = np.array(state.x, dtype=np.float64, order="C")
             self._v = np.array(state.v, dtype=np.float64, order="C")
             self._mem = self._memory(state)
-        x, v = self._x, self._v
-        common = (float(dt), step, stop, saved, k, xs, vs, ds, float(limit), self.model.w,
-                  self.model.f0, self.model.params)
-        ig, system = self.integrator, self.system
+        out = self._run(self._x, self._v, float(state.dissipated), self._mem,
+                        (float(dt), step, stop, saved, k, xs, vs, ds, float(limit)))
+        new_step, k, dissipated, status, n_force = out
+        self.system.counters.n_force += n_force
+        state = State(self._x.copy(), self._v.copy(), self._memory_tuple(), dissipated)
+        return new_step, k, state, status == self.model.module.OK
+
+    def warm(self) -> None:
+        """Load (or compile) the loop now, by a call of zero steps with the argument types of
+        ``simulate``: the cost stays out of the run's wall time (``Stats.wall_time`` times
+        the stepping, as the README's timing rule says)."""
+        shape = (self.system.n_particles, self.system.dim)
+        x, v = np.zeros(shape), np.zeros(shape)
+        empty = np.empty((0,) + shape)
+        mem = self._memory(State(x, v, (), 0.0), blank=True)
+        self._run(x, v, 0.0, mem, (1.0, 0, 0, np.zeros(0, dtype=np.int64), 0, empty, empty, np.empty(0), 1.0))
+
+    def _run(self, x, v, dissipated: float, mem: tuple, common: tuple):
+        """One call of the family's loop; ``common`` = (dt, step, stop, saved, k, xs, vs, ds, limit)."""
+        mod, ig, system = self.model.module, self.integrator, self.system
+        model = (self.model.w, self.model.f0, self.model.params)
         if self.loop == "explicit_rk":
             A, b = self.arrays
-            out = mod.run_explicit_rk(x, v, float(state.dissipated), A, b, *common)
-        elif self.loop == "splitting":
+            return mod.run_explicit_rk(x, v, dissipated, A, b, *common, *model)
+        if self.loop == "splitting":
             drift, kick = self.arrays
-            mem_a, mem_p = self._mem
+            mem_a, mem_p = mem
             reuse = bool(ig.fsal and not system.velocity_dependent)
             symmetric = bool(ig.symmetric_kicks and system.velocity_dependent)
-            out = mod.run_splitting(x, v, float(state.dissipated), drift, kick, reuse, symmetric,
-                                    mem_a, mem_p, int(ig.order), *common)
-        else:
-            mem_x, mem_a, mem_p = self._mem
-            code = mod.VERLET if self.loop == "verlet" else mod.LEAPFROG
-            out = mod.run_two_step(code, x, v, float(state.dissipated), mem_x, mem_a, mem_p, *common[:9],
-                                   bool(system.velocity_dependent), *common[9:])
-        new_step, k, dissipated, status, n_force = out
-        system.counters.n_force += n_force
-        return new_step, k, State(x.copy(), v.copy(), self._memory_tuple(), dissipated), status == mod.OK
+            return mod.run_splitting(x, v, dissipated, drift, kick, reuse, symmetric, mem_a, mem_p,
+                                     int(ig.order), *common, *model)
+        mem_x, mem_a, mem_p = mem
+        code = mod.VERLET if self.loop == "verlet" else mod.LEAPFROG
+        return mod.run_two_step(code, x, v, dissipated, mem_x, mem_a, mem_p, *common,
+                                bool(system.velocity_dependent), *model)
 
-    def _memory(self, state: State):
-        """Memory arrays of the loop from the numpy ``start``."""
+    def _memory(self, state: State, blank: bool = False):
+        """Memory arrays of the loop from the numpy ``start`` (zeros when ``blank``)."""
         shape = state.x.shape
         if self.loop == "splitting":
             mem_a, mem_p = np.zeros(shape), np.zeros(1)
@@ -77,6 +89,8 @@ class Stepper:
                 mem_a[:], mem_p[0] = state.memory
             return mem_a, mem_p
         mem_x, mem_a, mem_p = np.zeros(shape), np.zeros(shape), np.zeros(1)
+        if blank:
+            return mem_x, mem_a, mem_p
         if self.loop == "verlet":
             mem_x[:], mem_p[0] = state.memory
         elif self.loop == "leapfrog":
