@@ -166,10 +166,14 @@ def warp_section() -> list[str]:
             "(vectorised); spring indices are narrowed to int32. Warp's integrate kernel gets the "
             "same reset to the weights, so both do the same arithmetic in the same order: the "
             "results are bitwise equal (difference 0.0).",
-            "- The spring kernel is bound by its square root and division, not by memory: its share "
-            "of the copy bandwidth falls when other jobs share the core (quick runs the same day "
-            "at load averages 4.6-6 gave 44-67 % at 300x300 and step ratios 0.84-0.87). "
-            "The share's min-max spans such bursts.",
+            "- The spring kernel's share of the copy bandwidth varies from run to run on this shared "
+            "virtual machine, far more than the step ratio: the kernel runs at 6.5-10 ns per spring "
+            "while the copy keeps 22-26 GB/s. Runs the same day with this code: 300x300 step ratio "
+            "0.84-0.87 and share 44-77 % (77 %, ratio 0.87, at 18:19 UTC; 57 %, ratio 0.84, in the "
+            "run above). Its best repeats (6.5 ns per spring, 20 GB/s) are above 70 %. Splitting the "
+            "kernel into a gather pass, a vectorised square-root and division pass and a scatter "
+            "pass (measured: `vsqrtpd`/`vdivpd` emitted) made it slower (8.6 against 6.5 ns), so the "
+            "kernel is bound by its memory accesses, not by its arithmetic.",
             "- Both codes run on one thread here. The gather formulation (CSR adjacency, parallel "
             "loops) was measured, not built into the library: see the next section.", ""] + gather_section()
 
