@@ -103,10 +103,17 @@ def stepper(system, integrator, backend: str | None = None, n_steps: int | None 
         if name == "numba":
             raise ValueError(f"backend 'numba': {reason}; use backend='auto' or 'numpy'")
         return None
-    if name == "auto" and n_steps is not None and not worth_compiling(system, integrator, n_steps, state0):
+    try:
+        if name == "auto" and n_steps is not None and not worth_compiling(system, integrator, n_steps,
+                                                                          state0):
+            return None
+        runner = Stepper(system, integrator)
+        runner.warm()  # loading or compiling is not stepping: out of the run's wall time
+    except OSError as err:  # no folder for the generated loops (compose.cache_dir)
+        if name == "numba":
+            raise ValueError(f"backend 'numba': cannot write the compiled loops ({err}); "
+                             f"set MSLAB_CACHE_DIR to a writable folder") from None
         return None
-    runner = Stepper(system, integrator)
-    runner.warm()  # loading or compiling is not stepping: out of the run's wall time
     return runner
 
 

@@ -42,13 +42,22 @@ _modules: dict[tuple, ModuleType] = {}
 
 
 def cache_dir() -> Path:
-    """Where generated modules are written (created on demand)."""
+    """Where generated modules are written (created on demand).
+
+    ``$MSLAB_CACHE_DIR``, else ``$XDG_CACHE_HOME/mslab`` (``~/.cache/mslab``); where that
+    cannot be created (a read-only home), a folder of this user in the temporary directory.
+    OSError when neither can.
+    """
     root = os.environ.get("MSLAB_CACHE_DIR")
     if not root:
         base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
         root = os.path.join(base, "mslab")
-    path = Path(root) / "fast"
-    path.mkdir(parents=True, exist_ok=True)
+    try:
+        path = Path(root) / "fast"
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        path = Path(tempfile.gettempdir()) / f"mslab-{os.getuid()}" / "fast"
+        path.mkdir(parents=True, exist_ok=True)
     return path
 
 
