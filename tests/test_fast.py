@@ -262,3 +262,19 @@ def test_generated_loops_are_cached_across_processes(tmp_path):
     env = {"MSLAB_CACHE_DIR": str(tmp_path / "gen"), "NUMBA_CACHE_DIR": str(tmp_path / "numba")}
     assert _in_fresh_process(code, env) == "0 1"  # compiled
     assert _in_fresh_process(code, env) == "1 0"  # loaded
+
+
+def test_generated_loops_fall_back_to_a_temporary_folder(tmp_path, monkeypatch):
+    """A cache folder that cannot be created (a file in the way) does not stop a run."""
+    from mslab.fast import compose
+
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    monkeypatch.setenv("MSLAB_CACHE_DIR", str(blocker / "cache"))
+    monkeypatch.setenv("TMPDIR", str(tmp_path / "tmp"))
+    (tmp_path / "tmp").mkdir()
+    import tempfile
+
+    monkeypatch.setattr(tempfile, "tempdir", None)  # re-read TMPDIR
+    folder = compose.cache_dir()
+    assert folder.is_dir() and str(folder).startswith(str(tmp_path / "tmp"))
