@@ -21,15 +21,14 @@ from mslab.trajectory import Energy, Stats, Trajectory
 
 __version__ = "0.1.0"
 
-from mslab import stability  # noqa: E402  (mslab.stability.* as DESIGN.md spells it)
-
 
 def __getattr__(name: str):
-    """``mslab.derive``, ``mslab.precision``, ``mslab.plots`` on first use.
+    """``mslab.stability``, ``mslab.derive``, ``mslab.precision``, ``mslab.plots`` on first use.
 
-    They import sympy, scipy.integrate and matplotlib, which plain runs never need.
+    They import scipy.linalg, sympy, scipy.integrate and matplotlib, which a plain run
+    never needs (``import mslab`` stays cheap; issue 14).
     """
-    if name in ("derive", "precision", "plots"):
+    if name in ("stability", "derive", "precision", "plots"):
         import importlib
 
         return importlib.import_module(f"mslab.{name}")

@@ -12,9 +12,10 @@ Decisions (documented in the README):
 * **No hidden clamps.** A non-finite state, or positions beyond ``blowup`` times the
   scene's size, stops the run with :class:`~mslab.errors.InstabilityError`.
 * **Backends.** ``backend="auto"`` (default, see :mod:`mslab.fast`) runs the steps of an
-  explicit Runge-Kutta or symplectic method on a springs/gravity/damping scene in a
-  compiled loop; ``"numpy"`` always runs the readable loop below. Both give the same
-  samples (to 1e-12), counters, energy ledger and errors.
+  explicit Runge-Kutta or splitting method (Verlet, leapfrog too) in a compiled loop when
+  every effect of the scene has a kernel and the run is long enough to repay loading the
+  compiled code; ``"numpy"`` always runs the readable loop below. Both give the same
+  samples (to 1e-12), counters, energy ledger (the effects' own energies) and errors.
 """
 
 from __future__ import annotations
@@ -97,7 +98,9 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
     stable_dt : float, optional
         Predicted stable step, quoted in the InstabilityError message.
     backend : {"auto", "numba", "numpy"}, optional
-        Compiled or numpy stepping loop (see :mod:`mslab.fast`); default ``mslab.fast.BACKEND``.
+        Compiled or numpy stepping loop, fixed for the run (see :mod:`mslab.fast`); None reads
+        ``$MSLAB_BACKEND`` (default ``"auto"``: compiled when the scene's effects all have
+        kernels, the method has a compiled loop and the run is long enough to repay loading it).
     check_stability : bool
         For explicit methods, predict the largest stable dt first
         (:func:`mslab.stability.predicted_stable_dt`; not counted in ``stats``) and warn with
@@ -115,11 +118,7 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
     ConvergenceError
         An implicit method's iteration failed.
     """
-    if backend is not None and fast.check_backend(backend) != fast.BACKEND:
-        with fast.use_backend(backend):  # the spring kernel in Springs.force follows it too
-            return simulate(scene, method, dt, t_end, save_every, progress=progress, blowup=blowup,
-                            stable_dt=stable_dt, check_stability=check_stability,
-                            energy_blowup=energy_blowup)
+    backend = fast.check_backend(backend)
     s = scene.settings
     integrator = get_method(method if method is not None else s.method)
     dt = float(s.dt if dt is None else dt)
@@ -142,16 +141,14 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
     ds, ks, ps = np.empty(n_saved), np.empty(n_saved), np.empty(n_saved)
     limit = blowup * (1.0 + float(np.max(np.abs(scene.state0.x))))
     stats = Stats(method=integrator.name, dt=dt)
-    runner = fast.stepper(system, integrator, backend)
+    runner = fast.stepper(system, integrator, backend, n_steps, scene.state0)
     scale = initial_energy_scale(scene)  # 0: the run's own scale
     marks: list = [None] * n_saved  # (time, counters) when each sample was saved: where a run stops
     filled = 0  # samples [0, filled) have their kinetic and potential energy in ks, ps
 
     def energies(k: int) -> None:
         nonlocal filled
-        if runner is not None and k > filled:
-            ks[filled:k], ps[filled:k] = runner.model.energies(xs[filled:k], vs[filled:k])
-        for i in range(filled, k) if runner is None else ():
+        for i in range(filled, k):  # the effects' own energies, whichever loop stepped
             ks[i], ps[i] = system.kinetic_energy(vs[i]), system.potential_energy(xs[i])
         filled = max(filled, k)
 

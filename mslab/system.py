@@ -9,11 +9,14 @@ accuracy-versus-cost comparisons honest.
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.sparse as sp
 
 from mslab.effects.base import Effect
+
+if TYPE_CHECKING:  # scipy.sparse is imported on first use: `import mslab` stays cheap
+    import scipy.sparse as sp
 
 
 @dataclass
@@ -123,6 +126,8 @@ class System:
 
         ``D`` is None when no effect depends on velocity. Counts one n_jac.
         """
+        import scipy.sparse as sp
+
         self.counters.n_jac += 1
         size = self.n_particles * self.dim
         stiff = damp = None
@@ -137,6 +142,8 @@ class System:
     @property
     def inv_mass_diag(self) -> sp.dia_matrix:
         """``M^-1`` as a sparse diagonal of size n*dim (0 on pinned particles)."""
+        import scipy.sparse as sp
+
         return sp.diags(np.repeat(self.inv_mass, self.dim))
 
     # -- energy -------------------------------------------------------------------

@@ -7,17 +7,19 @@ import pytest
 
 import mslab
 from mslab import fast
-from mslab.effects import Springs
+from mslab.effects import Springs, effect_classes
 from mslab.scenes import generators
 
 pytestmark = [
-    pytest.mark.skipif(not fast.available(), reason="numba does not import"),
     # some runs below use methods outside their stability region on purpose (equality, blow-up)
     pytest.mark.filterwarnings("ignore::mslab.StabilityWarning"),
 ]
 
 #: every registered method with a compiled loop (the registry decides, not this list)
 FAST_METHODS = [m for m in mslab.methods() if mslab.get_method(m).compiled is not None]
+#: every registered effect with a compiled kernel (the registry decides)
+KERNEL_EFFECTS = [cls for cls in effect_classes() if cls.kernel is not None]
+EFFECT_IDS = [c.name for c in KERNEL_EFFECTS] + ["all"]
 
 
 def close(a, b, tol=1e-12):
@@ -34,40 +36,45 @@ def random_springs(rng, n=12, m=30, dim=3, damped=True):
                    rng.uniform(0, 3, m) if damped else np.zeros(m), n)
 
 
-@pytest.mark.parametrize("damped", [False, True])
+def effect_scene(classes, dim: int, seed: int = 0):
+    """6 particles in [-1, 1]^dim (one pinned) with each effect's ``example`` section, moving."""
+    rng = np.random.default_rng(seed)
+    b = mslab.SceneBuilder(dim)
+    for n, xi in enumerate(rng.uniform(-1.0, 1.0, size=(6, dim))):
+        b.add_particle(xi, mass=float(rng.uniform(0.5, 2.0)), velocity=rng.normal(size=dim), pinned=n == 3)
+    for cls in classes:
+        getattr(b, cls.builder_methods[0])(**cls.example(dim))
+    return b.build()
+
+
 @pytest.mark.parametrize("dim", [1, 2, 3])
-def test_spring_kernel_equals_numpy(dim, damped):
-    rng = np.random.default_rng(dim + 10 * damped)
-    springs = random_springs(rng, dim=dim, damped=damped)
-    x, v = rng.normal(size=(12, dim)), rng.normal(size=(12, dim))
-    x[3] = x[springs.j[0]] if springs.i[0] == 3 else x[3]
-    x[springs.i[1]] = x[springs.j[1]]  # a spring of zero length: no force, no NaN
-    with fast.use_backend("numpy"):
-        f_ref, p_ref = springs.force_and_power(x, v)
-        f_ref_only = springs.force(x, v)
-    with fast.use_backend("numba"):
-        f, p = springs.force_and_power(x, v)
-        f_only = springs.force(x, v)
-    assert np.all(np.isfinite(f))
-    assert close(f, f_ref) and close(f_only, f_ref_only) and close(p, p_ref)
-    assert (p > 0) == damped
-
-
-def test_force_model_rhs_and_energies_equal_system():
-    scene = generators.cloth(6, 5, damping=0.3, gamma=0.2)
+@pytest.mark.parametrize("cls", KERNEL_EFFECTS + [None], ids=EFFECT_IDS)
+def test_composed_kernels_equal_system_rhs(cls, dim):
+    """The generated sum of the effects' kernels (int32 indices) equals System.rhs and System.force."""
+    scene = effect_scene(KERNEL_EFFECTS if cls is None else [cls], dim)
     system = scene.system
-    rng = np.random.default_rng(1)
-    x = scene.state0.x + 0.05 * rng.normal(size=scene.state0.x.shape)
-    v = rng.normal(size=x.shape)
     model = fast.ForceModel(system)
-    with fast.use_backend("numpy"):
+    rng = np.random.default_rng(dim)
+    for _ in range(3):
+        x = scene.state0.x + 0.3 * rng.normal(size=scene.state0.x.shape)
+        v = rng.normal(size=x.shape)
         a_ref, p_ref = system.rhs(x, v)
-        kin_ref, pot_ref = system.kinetic_energy(v), system.potential_energy(x)
-    a, p = model.rhs(x, v)
-    kin, pot = model.energies(x[None], v[None])
-    assert close(a, a_ref) and close(p, p_ref)
-    assert close(kin, [kin_ref]) and close(pot, [pot_ref])
-    assert np.all(a[system.pinned] == 0.0)
+        a, p = model.rhs(x, v)
+        f, p2 = model.force(x, v)
+        assert close(a, a_ref) and close(p, p_ref) and close(p2, p_ref)
+        assert close(f, system.force(x, v))
+        assert np.all(a[system.pinned] == 0.0)
+
+
+@pytest.mark.parametrize("method", FAST_METHODS)
+@pytest.mark.parametrize("cls", KERNEL_EFFECTS + [None], ids=EFFECT_IDS)
+def test_every_kernel_effect_runs_compiled(cls, method):
+    """Any scene whose effects all have kernels steps compiled, equal to numpy, same counters."""
+    scene = effect_scene(KERNEL_EFFECTS if cls is None else [cls], 2, seed=3)
+    assert fast.unsupported(scene.system, mslab.get_method(method)) is None
+    runs = {b: mslab.simulate(scene, method, dt=1e-3, t_end=0.1, save_every=9, backend=b)
+            for b in ("numpy", "numba")}
+    assert_same_run(runs["numba"], runs["numpy"])
 
 
 def assert_same_run(a, b, tol=1e-12):
@@ -114,11 +121,13 @@ def test_energy_ledger_balances_on_the_fast_path():
     assert np.max(np.abs(traj.energy.total - traj.energy.total[0])) < 1e-8
 
 
-def test_chunk_boundaries_do_not_change_the_run(monkeypatch):
-    scene = SCENES["chain3d_damped"]()
-    whole = mslab.simulate(scene, "leapfrog", dt=2e-3, t_end=0.6, save_every=5, backend="numba")
+@pytest.mark.parametrize("scene_name", ["chain3d_damped", "chain2d"])
+@pytest.mark.parametrize("method", ["leapfrog", "velocity_verlet", "rk4", "forest_ruth"])
+def test_chunk_boundaries_do_not_change_the_run(monkeypatch, method, scene_name):
+    scene = SCENES[scene_name]()
+    whole = mslab.simulate(scene, method, dt=2e-3, t_end=0.6, save_every=5, backend="numba")
     monkeypatch.setattr(fast.Stepper, "max_chunk", 7)
-    pieces = mslab.simulate(scene, "leapfrog", dt=2e-3, t_end=0.6, save_every=5, backend="numba")
+    pieces = mslab.simulate(scene, method, dt=2e-3, t_end=0.6, save_every=5, backend="numba")
     assert_same_run(pieces, whole, tol=0.0)
 
 
@@ -154,7 +163,7 @@ def test_unsupported_scenes_fall_back_or_refuse():
     b.add_plane(normal=[0, 1], offset=0.0, stiffness=1e4, friction=0.2)
     scene = b.build()
     assert fast.stepper(scene.system, mslab.get_method("rk4"), "auto") is None
-    with pytest.raises(ValueError, match="no compiled kernel"):
+    with pytest.raises(ValueError, match=r"\['plane'\] have no compiled kernel"):
         mslab.simulate(scene, "rk4", dt=1e-3, t_end=0.1, backend="numba")
     chain = generators.chain(4)
     with pytest.raises(ValueError, match="no compiled stepping loop"):
@@ -196,8 +205,76 @@ def test_jacobian_fixed_pattern_equals_coo_assembly(dim):
     x, v = rng.normal(size=(9, dim)), rng.normal(size=(9, dim))
     K, D = springs.jacobians(x, v)
     eps = 1e-6  # and the assembled Jacobian is df/dx by central differences
-    with fast.use_backend("numpy"):
-        fd = np.column_stack([(springs.force(x + eps * e.reshape(x.shape), v)
-                               - springs.force(x - eps * e.reshape(x.shape), v)).ravel() / (2 * eps)
-                              for e in np.eye(x.size)])
+    fd = np.column_stack([(springs.force(x + eps * e.reshape(x.shape), v)
+                           - springs.force(x - eps * e.reshape(x.shape), v)).ravel() / (2 * eps)
+                          for e in np.eye(x.size)])
     assert np.allclose(K.toarray(), fd, atol=1e-6 * max(1.0, np.abs(fd).max()))
+
+
+def _in_fresh_process(code: str, env: dict | None = None) -> str:
+    import os
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
+                         env={**os.environ, **(env or {})})
+    assert out.returncode == 0, out.stderr
+    return out.stdout.strip()
+
+
+def test_auto_runs_short_runs_in_numpy_without_loading_numba():
+    """``backend="auto"``: a run too short to repay loading compiled code stays in numpy."""
+    code = ("import sys, mslab; from mslab.scenes import generators; sc = generators.chain(4, dim=2); "
+            "mslab.simulate(sc, 'rk4', dt=1e-3, t_end=0.05, check_stability=False); "
+            "print('numba' in sys.modules)")
+    assert _in_fresh_process(code) == "False"
+    code = code.replace("t_end=0.05", "t_end=200.0")
+    assert _in_fresh_process(code) == "True"
+
+
+def test_import_mslab_loads_neither_scipy_nor_numba():
+    """``import mslab`` stays cheap: scipy, numba and the stability package load on first use."""
+    code = ("import sys, mslab; print(sorted(m for m in ('scipy', 'numba', 'mslab.stability', 'sympy') "
+            "if m in sys.modules))")
+    assert _in_fresh_process(code) == "[]"
+    code = "import mslab; print(mslab.stability.imag_limit.__module__.startswith('mslab.stability'))"
+    assert _in_fresh_process(code) == "True"
+
+
+def test_constant_forces_are_summed_once():
+    """Gravity is constant by the effect protocol (no Jacobian blocks): it leaves the kernels for f0."""
+    scene = generators.chain(5, dim=3, stiffness=100.0, gamma=0.2)
+    model = fast.ForceModel(scene.system)
+    names = [k.__name__ for k in model.kernels]
+    assert "gravity_kernel" not in names and "spring_kernel" in names and "damping_kernel" in names
+    gravity = next(e for e in scene.system.effects if e.name == "gravity")
+    assert np.array_equal(model.f0, gravity.force(scene.state0.x, scene.state0.v))
+
+
+@pytest.mark.slow
+def test_generated_loops_are_cached_across_processes(tmp_path):
+    """The composed module compiles once; a second process loads every loop from numba's cache."""
+    code = ("import sys, mslab; from mslab.scenes import generators; "
+            "sc = generators.chain(5, dim=3, gamma=0.1); "
+            "mslab.simulate(sc, 'symplectic_euler', dt=1e-3, t_end=0.01, backend='numba'); "
+            "mod = [m for n, m in sys.modules.items() if n.startswith('mslab_fast_')][0]; "
+            "s = mod.run_splitting.stats; print(sum(s.cache_hits.values()), sum(s.cache_misses.values()))")
+    env = {"MSLAB_CACHE_DIR": str(tmp_path / "gen"), "NUMBA_CACHE_DIR": str(tmp_path / "numba")}
+    assert _in_fresh_process(code, env) == "0 1"  # compiled
+    assert _in_fresh_process(code, env) == "1 0"  # loaded
+
+
+def test_generated_loops_fall_back_to_a_temporary_folder(tmp_path, monkeypatch):
+    """A cache folder that cannot be created (a file in the way) does not stop a run."""
+    from mslab.fast import compose
+
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    monkeypatch.setenv("MSLAB_CACHE_DIR", str(blocker / "cache"))
+    monkeypatch.setenv("TMPDIR", str(tmp_path / "tmp"))
+    (tmp_path / "tmp").mkdir()
+    import tempfile
+
+    monkeypatch.setattr(tempfile, "tempdir", None)  # re-read TMPDIR
+    folder = compose.cache_dir()
+    assert folder.is_dir() and str(folder).startswith(str(tmp_path / "tmp"))

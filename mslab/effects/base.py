@@ -24,12 +24,14 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
-import scipy.sparse as sp
 
 from mslab.effects.schema import Key
+
+if TYPE_CHECKING:  # scipy.sparse is imported on first use: `import mslab` stays cheap
+    import scipy.sparse as sp
 
 
 @dataclass(frozen=True)
@@ -194,6 +196,8 @@ def block_diagonal(blocks: np.ndarray, particles: np.ndarray, n: int) -> sp.csr_
 
     ``blocks`` has shape ``(m, dim, dim)``; repeated particles are summed.
     """
+    import scipy.sparse as sp
+
     m, dim, _ = blocks.shape
     rows = (particles[:, None] * dim + np.arange(dim)[None, :])  # (m, dim)
     r = np.repeat(rows, dim, axis=1).ravel()
@@ -207,6 +211,8 @@ def pair_blocks(blocks: np.ndarray, i: np.ndarray, j: np.ndarray, n: int) -> sp.
     This is the pattern of any force that depends on ``x_i - x_j`` only (a spring):
     with ``B = df_i/dx_i`` we have ``df_i/dx_j = -B``, ``df_j/dx_j = B``, ``df_j/dx_i = -B``.
     """
+    import scipy.sparse as sp
+
     m, dim, _ = blocks.shape
     ri = i[:, None] * dim + np.arange(dim)[None, :]
     rj = j[:, None] * dim + np.arange(dim)[None, :]

@@ -5,13 +5,14 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.sparse as sp
 
 from mslab.effects.base import BuildContext, Effect
 from mslab.effects.registry import register
 from mslab.effects.schema import Key
 
 if TYPE_CHECKING:
+    import scipy.sparse as sp
+
     from mslab.scenes.builder import SceneBuilder
 
 
@@ -71,6 +72,8 @@ class Damping(Effect):
 
     def jacobians(self, x: np.ndarray, v: np.ndarray) -> tuple[None, sp.csr_matrix]:
         """Return ``(None, -gamma I)``."""
+        import scipy.sparse as sp  # on first use: `import mslab` stays cheap
+
         return None, -self.gamma * sp.identity(self.n * self.dim, format="csr")
 
     def kernel_params(self) -> tuple:

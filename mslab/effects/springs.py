@@ -10,15 +10,15 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.sparse as sp
 
 from mslab.effects.base import BuildContext, Effect
 from mslab.effects.registry import register
 from mslab.effects.schema import Key, check_keys
 from mslab.effects.spring_table import SPRING_KINDS, SpringTable
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # scipy.sparse is imported on first use: `import mslab` stays cheap
     import numpy.typing as npt
+    import scipy.sparse as sp
 
     from mslab.scenes.bodies import Body
     from mslab.scenes.builder import SceneBuilder
@@ -237,6 +237,8 @@ class Springs(Effect):
         COO -> CSR conversion is done on the first call only: later calls sum the block
         entries into the stored slots (``np.bincount`` over a precomputed index map).
         """
+        import scipy.sparse as sp  # on first use: `import mslab` stays cheap
+
         m, dim, _ = blocks.shape
         if self._csr is None or self._csr[0] != dim:
             self._csr = (dim,) + self._pattern(dim)

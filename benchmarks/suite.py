@@ -8,15 +8,16 @@ than absolute times do. Four experiments (issue 5, item 3):
 ``chain``
     20-mass 3D chain, RK4, dt = 1e-3: time per step of ``mslab.simulate`` (compiled loop)
     and of the numpy loop, both divided by a hand-written numba RK4 loop
-    (:func:`mslab.fast.references.ref_rk4`). Target: mslab <= 3 x the reference.
+    (:func:`benchmarks.references.ref_rk4`). Target: mslab <= 3 x the reference.
 ``matched_error``
     Same chain to t = 2: scipy ``solve_ivp(RK45)`` (rtol 1e-6, compiled right-hand side,
     its best case) against mslab RK4 at the largest dt of a sweep whose final error is no
     larger; errors against ``solve_ivp(DOP853, rtol = atol = 1e-13)``. Target: mslab faster.
 ``cloth_forces``
-    Spring forces of a 300 x 300 cloth (5.4e5 springs): ``Springs.force`` evaluations per
-    second relative to a single-thread compiled kernel
-    (:func:`mslab.fast.references.ref_spring_force`); the numpy path for comparison; the
+    Spring forces of a 300 x 300 cloth (5.4e5 springs): the compiled force of mslab
+    (``ForceModel.force``: the scene's kernels, composed) evaluations per second relative
+    to a single-thread compiled kernel
+    (:func:`benchmarks.references.ref_spring_force`); the numpy path for comparison; the
     log-log slope of time against the number of springs from 1e3 to 1e6. Targets:
     ratio >= 0.7, slope <= 1.1.
 ``implicit``
@@ -36,6 +37,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from benchmarks import references as ref
 from mslab import fast
 
 
@@ -110,30 +112,31 @@ def chain_scene():
 
 
 def _ref_args(system):
-    """Arguments of the reference kernels: flat arrays of the chain/cloth springs, gravity g."""
-    model = fast.ForceModel(system)
-    g = np.zeros(3)
-    free = model.inv_mass > 0
-    if np.any(free):
-        g = model.f_gravity[free][0] * model.inv_mass[free][0]
-    return model, g
+    """Arguments of the reference kernels: the springs' flat arrays and gravity g."""
+    from mslab.effects import Gravity, Springs
+
+    springs = next(e for e in system.effects if type(e) is Springs)
+    g = np.zeros(system.dim)
+    for e in system.effects:
+        if type(e) is Gravity:
+            g = g + e.g
+    return springs, np.ascontiguousarray(system.inv_mass), g
 
 
 def bench_chain(quick: bool = False) -> dict:
     """Time per RK4 step: mslab (compiled loop), mslab numpy loop, hand-written numba loop."""
     import mslab
-    from mslab.fast import references as ref
 
     scene = chain_scene()
     dt = 1e-3
     n_steps = 2000 if quick else 10000
     repeats = 7 if quick else 15
-    model, g = _ref_args(scene.system)
+    springs, inv_mass, g = _ref_args(scene.system)
     x0, v0 = scene.state0.x, scene.state0.v
 
     def run_ref():
         x, v = x0.copy(), v0.copy()
-        ref.ref_rk4(x, v, model.inv_mass, model.i, model.j, model.stiffness, model.rest_length, g,
+        ref.ref_rk4(x, v, inv_mass, springs.i, springs.j, springs.stiffness, springs.rest_length, g,
                     dt, n_steps)
         return x
 
@@ -142,8 +145,8 @@ def bench_chain(quick: bool = False) -> dict:
                               backend=backend, check_stability=False)
 
     # same answer first (the reference is the same method on the same forces)
-    agree = float(np.max(np.abs(run_ref() - run_mslab("auto", n_steps).x[-1])))
-    t_fast, t_ref, ratio = paired_times(lambda: run_mslab("auto", n_steps), run_ref, repeats)
+    agree = float(np.max(np.abs(run_ref() - run_mslab("numba", n_steps).x[-1])))
+    t_fast, t_ref, ratio = paired_times(lambda: run_mslab("numba", n_steps), run_ref, repeats)
     t_fast, t_ref = t_fast / n_steps, t_ref / n_steps
     n_np = 200 if quick else 1000
     t_numpy = median_time(lambda: run_mslab("numpy", n_np), 3 if quick else 5, min_time=0.0) / n_np
@@ -160,7 +163,7 @@ def bench_matched_error(quick: bool = False) -> dict:
     import mslab
 
     scene = chain_scene()
-    model = fast.ForceModel(scene.system)
+    model = fast.ForceModel(scene.system)  # scipy gets the compiled right-hand side (its best case)
     shape = scene.state0.x.shape
     size = scene.state0.x.size
     t_end = 2.0
@@ -236,7 +239,7 @@ def cloth_springs(n: int, from_scene: bool = True):
 
 def bench_cloth_forces(quick: bool = False) -> dict:
     """Spring-force evaluations per second (mslab, numpy, reference) and the cost slope."""
-    from mslab.fast import references as ref
+    from mslab.system import System
 
     repeats = 7 if quick else 15
     rng = np.random.default_rng(0)
@@ -245,23 +248,28 @@ def bench_cloth_forces(quick: bool = False) -> dict:
     v = np.zeros_like(x)
     buf = np.empty_like(x)
 
+    def compiled(s):
+        """The compiled force of a System made of these springs (mslab's composed kernels)."""
+        n = s.n
+        return fast.ForceModel(System(np.ones(n), np.zeros(n, dtype=bool), [s], 3))
+
+    model = compiled(springs)
+
     def run_ref():
         ref.ref_spring_force(x, springs.i, springs.j, springs.stiffness, springs.rest_length, buf)
 
-    with fast.use_backend("auto"):
-        run_ref()
-        agree = float(np.max(np.abs(springs.force(x, v) - buf)))
-        t_ref, t_fast, ratio = paired_times(run_ref, lambda: springs.force(x, v), repeats)
-    with fast.use_backend("numpy"):
-        t_numpy = median_time(lambda: springs.force(x, v), 3)
+    run_ref()
+    agree = float(np.max(np.abs(model.force(x, v)[0] - buf)))
+    t_ref, t_fast, ratio = paired_times(run_ref, lambda: model.force(x, v), repeats)
+    t_numpy = median_time(lambda: springs.force(x, v), 3)
     sizes, times = [], []
-    with fast.use_backend("auto"):
-        for n in (13, 41, 129, 408):  # 1e3 .. 1e6 springs
-            s, xn = cloth_springs(n, from_scene=False)
-            xn = xn + 0.01 * rng.normal(size=xn.shape)
-            vn = np.zeros_like(xn)
-            sizes.append(len(s.i))
-            times.append(median_time(lambda s=s, xn=xn, vn=vn: s.force(xn, vn), repeats))
+    for n in (13, 41, 129, 408):  # 1e3 .. 1e6 springs
+        s, xn = cloth_springs(n, from_scene=False)
+        xn = xn + 0.01 * rng.normal(size=xn.shape)
+        vn = np.zeros_like(xn)
+        mn = compiled(s)
+        sizes.append(len(s.i))
+        times.append(median_time(lambda mn=mn, xn=xn, vn=vn: mn.force(xn, vn), repeats))
     slope = float(np.polyfit(np.log(sizes), np.log(times), 1)[0])
     return {"n_springs": int(len(springs.i)), "ref_evals_per_s": 1.0 / t_ref,
             "mslab_evals_per_s": 1.0 / t_fast, "numpy_evals_per_s": 1.0 / t_numpy,
@@ -319,8 +327,6 @@ TARGETS = (
 
 def run_all(quick: bool = False, progress: Callable[[str], None] | None = None) -> dict:
     """Run the four experiments; returns ``{"machine", "quick", experiments..., "targets"}``."""
-    if not fast.available():
-        raise RuntimeError("mslab bench needs numba (the compiled path and the references)")
     doc = {"machine": machine(), "quick": quick}
     for name, fn in (("chain", bench_chain), ("matched_error", bench_matched_error),
                      ("cloth_forces", bench_cloth_forces), ("implicit", bench_implicit)):

@@ -1,0 +1,137 @@
+"""Compiled loops for one combination of effect kernels: a generated module, cached by numba.
+
+Each effect with a compiled kernel defines it once, as a plain function in its own module
+(``kernel(x, v, f, *params) -> power``, see :mod:`mslab.effects.base`). For a scene whose
+effects all have kernels, :func:`module_for` writes a module that is the text of the
+template :mod:`mslab.fast.loops` followed by::
+
+    from mslab.effects.springs import spring_kernel as _py_k0
+    _k0 = njit(cache=True)(_py_k0)
+    ...
+    @njit(cache=True)
+    def scene_forces(x, v, f, params):
+        power = _k0(x, v, f, *params[0])
+        power += _k1(x, v, f, *params[1])
+        return power
+
+so numba compiles the loops with the kernels inlined and caches them on disk.
+
+Decision (measured, see ``benchmarks/RESULTS.md``): numba does not cache functions that take
+other compiled functions as arguments (every process recompiled the loops: a cache miss
+each time), so the composition is a generated source file. Its name is a hash of its whole
+text, which includes the sources of the kernels it calls: editing a kernel or the template
+gives a new module and a fresh compile (numba alone would not notice an edited callee).
+Files go to ``$MSLAB_CACHE_DIR`` or ``$XDG_CACHE_HOME/mslab`` (``~/.cache/mslab``), and
+numba's cache to a ``__pycache__`` beside them.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import inspect
+import os
+import sys
+import tempfile
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from types import ModuleType
+
+_MARKER = "# -- scene forces (generated) --"
+_modules: dict[tuple, ModuleType] = {}
+
+
+def cache_dir() -> Path:
+    """Where generated modules are written (created on demand).
+
+    ``$MSLAB_CACHE_DIR``, else ``$XDG_CACHE_HOME/mslab`` (``~/.cache/mslab``); where that
+    cannot be created (a read-only home), a folder of this user in the temporary directory.
+    OSError when neither can.
+    """
+    root = os.environ.get("MSLAB_CACHE_DIR")
+    if not root:
+        base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+        root = os.path.join(base, "mslab")
+    try:
+        path = Path(root) / "fast"
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        path = Path(tempfile.gettempdir()) / f"mslab-{os.getuid()}" / "fast"
+        path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def _template() -> str:
+    path = Path(__file__).with_name("loops.py")
+    text = path.read_text(encoding="utf-8")
+    return text[: text.index(_MARKER)]
+
+
+def source(kernels: Sequence[Callable]) -> str:
+    """The generated module's text for these kernels, in summation order."""
+    lines = [_template().rstrip() + "\n", "", f"{_MARKER}"]
+    for n, kern in enumerate(kernels):
+        body = inspect.getsource(kern)
+        digest = hashlib.sha256(body.encode()).hexdigest()[:16]
+        lines.append(f"from {kern.__module__} import {kern.__name__} as _py_k{n}  # source {digest}")
+    lines.append("")
+    lines += [f"_k{n} = njit(cache=True)(_py_k{n})" for n in range(len(kernels))]
+    lines += ["", "", "@njit(cache=True)", "def scene_forces(x, v, f, params):",
+              '    """Sum of the effects\' kernels: ``f += sum_e f_e``; returns the dissipated power."""',
+              "    power = 0.0"]
+    lines += [f"    power += _k{n}(x, v, f, *params[{n}])" for n in range(len(kernels))]
+    lines += ["    return power", ""]
+    return "\n".join(lines)
+
+
+def _key(kernels: Sequence[Callable]) -> tuple:
+    return tuple((k.__module__, k.__qualname__) for k in kernels)
+
+
+def _path(text: str) -> tuple[str, Path]:
+    name = "mslab_fast_" + hashlib.sha256(text.encode()).hexdigest()[:20]
+    return name, cache_dir() / f"{name}.py"
+
+
+def state(kernels: Sequence[Callable]) -> str:
+    """``"loaded"`` (in this process), ``"cached"`` (generated before: numba loads it from its
+    cache) or ``"new"`` (numba compiles it: seconds)."""
+    if _key(kernels) in _modules:
+        return "loaded"
+    return "cached" if _path(source(kernels))[1].exists() else "new"
+
+
+def _write_once(path: Path, text: str) -> None:
+    """Write ``path`` atomically, never replacing a complete copy another process wrote first
+    (a new time stamp would void numba's cache of it)."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        try:
+            os.link(tmp, path)  # fails if the file exists: the first complete copy stays
+        except FileExistsError:
+            if path.read_text(encoding="utf-8") != text:  # a damaged copy: replace it
+                os.replace(tmp, path)
+        except OSError:  # no hard links on this file system
+            os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def module_for(kernels: Sequence[Callable]) -> ModuleType:
+    """The compiled loops for these kernels (generated, written and imported once per process)."""
+    key = _key(kernels)
+    if key in _modules:
+        return _modules[key]
+    text = source(kernels)
+    name, path = _path(text)
+    if not path.exists() or path.read_text(encoding="utf-8") != text:
+        _write_once(path, text)
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    _modules[key] = module
+    return module

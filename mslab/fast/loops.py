@@ -1,0 +1,342 @@
+"""The compiled stepping loops: one per method family, generic over the scene's effects.
+
+This file is a *template*: :mod:`mslab.fast.compose` copies its text into a module generated
+for one combination of effect kernels and appends the definition of ``scene_forces`` (the
+sum of the effects' own ``kernel`` functions), so numba compiles, inlines and caches the
+loops for that combination (``cache=True``: a later process loads them in a fraction of a
+second). Nothing here knows any effect. Arrays are float64, C-contiguous: positions ``x``
+and velocities ``v`` of shape ``(n_particles, dim)``.
+
+The loops are lean (issue 14): forces accumulate into a scratch array ``f`` that holds the
+scene's constant forces ``f0`` between uses (gravity: see :class:`mslab.fast.ForceModel`),
+restored by each pass that reads ``f``, so there is neither a zeroing nor a gravity pass;
+a kick, the following drift and the blow-up test of the step share one pass over the
+particles; the acceleration ``a = f / m`` is formed in that pass, not stored. Passes over
+particles run on flat views of the ``(n_particles, dim)`` arrays, with the inverse mass
+repeated per coordinate (``w``), branch-free inside and without zero-division checks
+(``error_model="numpy"``): numba vectorises them, which it does not do for the
+two-index loops (measured 8x faster on a 300 x 300 cloth).
+
+Every loop returns ``(step, k, dissipated, status, n_force)``: the last step taken, the next
+free save slot, :data:`OK` or :data:`BLOWUP` (then ``step`` is the step that blew up), and
+the number of force evaluations made; states whose step is in ``saved[k:]`` go to
+``xs, vs, ds``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+OK = 0
+BLOWUP = 1
+VERLET = 2
+LEAPFROG = 3
+
+
+@njit(cache=True, error_model="numpy")
+def rhs(x, v, a, w, f0, params):
+    """Acceleration ``a = M^-1 (f0 + sum_e f_e(x, v))`` into ``a``; returns the dissipated power."""
+    af = a.reshape(a.size)
+    f0f = f0.reshape(f0.size)
+    for e in range(af.size):
+        af[e] = f0f[e]
+    power = scene_forces(x, v, a, params)
+    for e in range(af.size):
+        af[e] = w[e] * af[e]
+    return power
+
+
+@njit(cache=True, error_model="numpy")
+def _save(x, v, dissipated, xs, vs, ds, k):
+    xs[k] = x
+    vs[k] = v
+    ds[k] = dissipated
+
+
+@njit(cache=True, error_model="numpy")
+def _drift(xf, vf, hd):
+    for e in range(xf.size):
+        xf[e] = xf[e] + hd * vf[e]
+
+
+@njit(cache=True, error_model="numpy")
+def _kick(xf, vf, ff, f0f, w, h, hd, limit):
+    """``a = w f; f = f0; v += h a; x += hd v`` in one pass; returns the count of bad entries."""
+    count = 0
+    for e in range(xf.size):
+        aq = w[e] * ff[e]
+        ff[e] = f0f[e]
+        vq = vf[e] + h * aq
+        vf[e] = vq
+        xq = xf[e] + hd * vq
+        xf[e] = xq
+        count += 0 if (abs(xq) < limit and vq - vq == 0.0) else 1
+    return count
+
+
+@njit(cache=True, error_model="numpy")
+def _kick_keep(xf, vf, ff, f0f, w, h, hd, mem_a, limit):
+    """:func:`_kick` that also keeps ``a`` in ``mem_a`` (first same as last)."""
+    count = 0
+    for e in range(xf.size):
+        aq = w[e] * ff[e]
+        ff[e] = f0f[e]
+        mem_a[e] = aq
+        vq = vf[e] + h * aq
+        vf[e] = vq
+        xq = xf[e] + hd * vq
+        xf[e] = xq
+        count += 0 if (abs(xq) < limit and vq - vq == 0.0) else 1
+    return count
+
+
+@njit(cache=True, error_model="numpy")
+def _kick_with(xf, vf, af, h, hd, limit):
+    """``v += h a; x += hd v`` with a known acceleration; returns the count of bad entries."""
+    count = 0
+    for e in range(xf.size):
+        vq = vf[e] + h * af[e]
+        vf[e] = vq
+        xq = xf[e] + hd * vq
+        xf[e] = xq
+        count += 0 if (abs(xq) < limit and vq - vq == 0.0) else 1
+    return count
+
+
+@njit(cache=True, error_model="numpy")
+def run_explicit_rk(x, v, dissipated, A, b, dt, step, n_steps, saved, k, xs, vs, ds, limit,
+                    w, f0, params):
+    """Steps of an explicit Runge-Kutta tableau (seed eqs. 16-20), ``y = (x, v)``, ``F = (v, a)``.
+
+    ``Y_s = y_n + h sum_{r<s} A_sr K_r``, ``y_{n+1} = y_n + h sum_s b_s K_s``; the dissipated
+    work gets the weights ``b`` too. ``kx[s]`` is the stage velocity, ``kv[s]`` its acceleration.
+    """
+    n, dim = x.shape
+    size = n * dim
+    s = b.shape[0]
+    xf = x.reshape(size)
+    vf = v.reshape(size)
+    f0f = f0.reshape(size)
+    kx = np.empty((s, n, dim))
+    kv = np.empty((s, n, dim))
+    xi = np.empty((n, dim))
+    xif = xi.reshape(size)
+    kxf = kx.reshape((s, size))
+    kvf = kv.reshape((s, size))
+    power = np.empty(s)
+    n_force = 0
+    while step < n_steps:
+        step += 1
+        for st in range(s):
+            for e in range(size):  # the stage (xi, kx[st]) and its force slot kv[st] = f0, one pass
+                sx = xf[e]
+                sv = vf[e]
+                for r in range(st):
+                    h = dt * A[st, r]
+                    if h != 0.0:
+                        sx = sx + h * kxf[r, e]
+                        sv = sv + h * kvf[r, e]
+                xif[e] = sx
+                kxf[st, e] = sv
+                kvf[st, e] = f0f[e]
+            power[st] = scene_forces(xi, kx[st], kv[st], params)
+            n_force += 1
+            for e in range(size):
+                kvf[st, e] = w[e] * kvf[st, e]
+        work = 0.0
+        for st in range(s):
+            if b[st] != 0.0:
+                work += dt * b[st] * power[st]
+        bad = 0
+        for e in range(size):  # y_{n+1} and the blow-up test, one pass
+            sx = xf[e]
+            sv = vf[e]
+            for st in range(s):
+                h = dt * b[st]
+                if h != 0.0:
+                    sx = sx + h * kxf[st, e]
+                    sv = sv + h * kvf[st, e]
+            xf[e] = sx
+            vf[e] = sv
+            bad += 0 if (abs(sx) < limit and sv - sv == 0.0) else 1
+        dissipated = dissipated + work
+        if k < saved.shape[0] and saved[k] == step:
+            _save(x, v, dissipated, xs, vs, ds, k)
+            k += 1
+        if bad:
+            return step, k, dissipated, BLOWUP, n_force
+    return step, k, dissipated, OK, n_force
+
+
+@njit(cache=True, error_model="numpy")
+def run_splitting(x, v, dissipated, drift, kick, reuse, kA, kb, mem_a, mem_p,
+                  dt, step, n_steps, saved, k, xs, vs, ds, limit, w, f0, params):
+    """Steps of a drift/kick splitting (``mslab/integrators/splitting.py``).
+
+    ``x += a_0 h v; v += b_0 h a; x += a_1 h v; ...; x += a_k h v`` with ``a = drift``,
+    ``b = kick``. ``reuse``: the first kick takes the acceleration of the previous step's
+    last kick from ``mem_a, mem_p`` (first same as last; ``mem_a`` is updated in place).
+    A kick is one step of the explicit tableau ``(kA, kb)`` on ``v' = a(x, v)`` with x
+    fixed: with one stage (forces independent of v, or order 1) the plain kick ``v += b h a``.
+    A kick, the drift after it and the blow-up test are one pass (the test counts at the
+    last kick only).
+    """
+    n, dim = x.shape
+    size = n * dim
+    nk = kick.shape[0]
+    ns = kb.shape[0]
+    xf = x.reshape(size)
+    vf = v.reshape(size)
+    f = f0.copy()
+    ff = f.reshape(size)
+    f0f = f0.reshape(size)
+    maf = mem_a.reshape(size)
+    acc = np.empty((ns if ns > 1 else 0, size))
+    pws = np.empty(ns)
+    vi = np.empty((n, dim) if ns > 1 else (0, dim))
+    vif = vi.reshape(vi.size)
+    n_force = 0
+    p_last = mem_p[0]
+    while step < n_steps:
+        step += 1
+        work = 0.0
+        bad = 0
+        if drift[0] != 0.0:
+            _drift(xf, vf, dt * drift[0])
+        for st in range(nk):
+            h = dt * kick[st]
+            hd = dt * drift[st + 1]
+            last = st == nk - 1
+            if st == 0 and reuse:  # a from the previous step's last kick
+                pw = p_last
+                bad = _kick_with(xf, vf, maf, h, hd, limit)
+            elif ns > 1:  # velocity-dependent forces: one step of (kA, kb) in v, x fixed
+                for r in range(ns):
+                    for e in range(size):
+                        sv = vf[e]
+                        for u in range(r):
+                            hu = h * kA[r, u]
+                            if hu != 0.0:
+                                sv = sv + hu * acc[u, e]
+                        vif[e] = sv
+                    pws[r] = scene_forces(x, vi, f, params)
+                    n_force += 1
+                    for e in range(size):
+                        acc[r, e] = w[e] * ff[e]
+                        ff[e] = f0f[e]
+                pw = 0.0
+                for r in range(ns):
+                    if kb[r] != 0.0:
+                        pw += kb[r] * pws[r]
+                bad = 0
+                for e in range(size):
+                    vq = vf[e]
+                    for r in range(ns):
+                        hb = h * kb[r]
+                        if hb != 0.0:
+                            vq = vq + hb * acc[r, e]
+                    vf[e] = vq
+                    xq = xf[e] + hd * vq
+                    xf[e] = xq
+                    bad += 0 if (abs(xq) < limit and vq - vq == 0.0) else 1
+            elif reuse and last:
+                pw = scene_forces(x, v, f, params)
+                n_force += 1
+                bad = _kick_keep(xf, vf, ff, f0f, w, h, hd, maf, limit)
+            else:  # the explicit kick: forces, then kick + drift + test in one pass
+                pw = scene_forces(x, v, f, params)
+                n_force += 1
+                bad = _kick(xf, vf, ff, f0f, w, h, hd, limit)
+            work += h * pw
+            p_last = pw
+        dissipated = dissipated + work
+        if k < saved.shape[0] and saved[k] == step:
+            _save(x, v, dissipated, xs, vs, ds, k)
+            k += 1
+        if bad:
+            mem_p[0] = p_last
+            return step, k, dissipated, BLOWUP, n_force
+    mem_p[0] = p_last
+    return step, k, dissipated, OK, n_force
+
+
+@njit(cache=True, error_model="numpy")
+def run_two_step(method, x, v, dissipated, mem_x, mem_a, mem_p, dt, step, n_steps, saved, k,
+                 xs, vs, ds, limit, velocity_dependent, w, f0, params):
+    """Steps of Verlet and leapfrog (``mslab/integrators/two_step.py``, seed eqs. 21-26).
+
+    One force evaluation ``a = a(X, V)`` per step:
+
+    * VERLET: ``(X, V) = (x_n, v_n)``; ``x_{n+1} = 2 x_n - x_{n-1} + h^2 a``,
+      ``v_{n+1} = (x_{n+1} - x_n)/h + h/2 a`` (memory ``mem_x = x_{n-1}``, ``mem_p = [P_{n-1}]``);
+    * LEAPFROG: ``X = x_n + h v_{n+1/2}``, ``V = v_{n+1/2} (+ h/2 a_n if forces depend on v)``;
+      ``v_{n+1} = v_{n+1/2} + h/2 a``, ``v_{n+3/2} = v_{n+1/2} + h a`` (``mem_x = v_{n+1/2}``,
+      ``mem_a = a_n``, ``mem_p = [P_n]``).
+
+    Memory arrays are updated in place.
+    """
+    n, dim = x.shape
+    size = n * dim
+    xf = x.reshape(size)
+    vf = v.reshape(size)
+    mxf = mem_x.reshape(size)
+    maf = mem_a.reshape(size)
+    f = f0.copy()
+    ff = f.reshape(size)
+    f0f = f0.reshape(size)
+    verlet = method == VERLET
+    xg = x if verlet else np.empty((n, dim))
+    vg = v if verlet else np.empty((n, dim))
+    xgf = xg.reshape(size)
+    vgf = vg.reshape(size)
+    n_force = 0
+    while step < n_steps:
+        step += 1
+        if not verlet:
+            for e in range(size):
+                xgf[e] = xf[e] + dt * mxf[e]
+                vgf[e] = mxf[e] + (0.5 * dt) * maf[e] if velocity_dependent else mxf[e]
+        pw = scene_forces(xg, vg, f, params)
+        n_force += 1
+        bad = 0
+        if verlet:
+            for e in range(size):
+                aq = w[e] * ff[e]
+                ff[e] = f0f[e]
+                xo = xf[e]
+                x_new = 2.0 * xo - mxf[e] + (dt * dt) * aq
+                vq = (x_new - xo) / dt + (0.5 * dt) * aq
+                vf[e] = vq
+                mxf[e] = xo
+                xf[e] = x_new
+                bad += 0 if (abs(x_new) < limit and vq - vq == 0.0) else 1
+            dissipated = dissipated + 0.5 * dt * (3.0 * pw - mem_p[0])
+        else:
+            for e in range(size):
+                aq = w[e] * ff[e]
+                ff[e] = f0f[e]
+                xq = xgf[e]
+                xf[e] = xq
+                vq = mxf[e] + (0.5 * dt) * aq
+                vf[e] = vq
+                mxf[e] = mxf[e] + dt * aq
+                maf[e] = aq
+                bad += 0 if (abs(xq) < limit and vq - vq == 0.0) else 1
+            dissipated = dissipated + 0.5 * dt * (mem_p[0] + pw)
+        mem_p[0] = pw
+        if k < saved.shape[0] and saved[k] == step:
+            _save(x, v, dissipated, xs, vs, ds, k)
+            k += 1
+        if bad:
+            return step, k, dissipated, BLOWUP, n_force
+    return step, k, dissipated, OK, n_force
+
+
+# -- scene forces (generated) --
+# mslab.fast.compose cuts the template here and appends the scene's own ``scene_forces``:
+# ``f += sum_e kernel_e(x, v, f, *params[e])`` over the effects that are not constant,
+# returning the summed dissipated power.
+def scene_forces(x, v, f, params):
+    """Placeholder of the template (never compiled)."""
+    raise NotImplementedError("mslab.fast.loops is a template; use mslab.fast.compose")

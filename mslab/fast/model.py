@@ -1,0 +1,109 @@
+"""The force model of the compiled path: the scene's effect kernels and their parameters."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mslab.fast import compose
+
+
+def kernel_reason(system) -> str | None:
+    """Why the effects of ``system`` cannot be compiled (None: every effect has a kernel)."""
+    missing = [e.name for e in system.effects if getattr(e, "kernel", None) is None]
+    if missing:
+        return f"effects {missing} have no compiled kernel"
+    return None
+
+
+def _param(value):
+    """A kernel parameter as the compiled code wants it.
+
+    Arrays become C-contiguous; index arrays (int64) whose values fit are narrowed to int32
+    (half the memory traffic of a spring's indices); bools become ints; floats stay floats.
+    """
+    if isinstance(value, np.ndarray):
+        if value.dtype.kind in "iu":
+            small = value.size == 0 or (int(value.min()) >= -(2**31) and int(value.max()) < 2**31)
+            return np.ascontiguousarray(value, dtype=np.int32 if small else np.int64)
+        if value.dtype.kind == "b":
+            return np.ascontiguousarray(value)
+        return np.ascontiguousarray(value, dtype=np.float64)
+    if isinstance(value, bool | np.bool_):
+        return int(value)
+    return value
+
+
+def is_constant(effect, n_particles: int, dim: int) -> bool:
+    """Whether the effect's force is one fixed array for the whole run (gravity).
+
+    By the effect protocol: an external force (not ``internal``) that depends on neither
+    position nor velocity (both Jacobian blocks ``None``, "identically zero") and
+    dissipates nothing. Internal forces (springs) are never asked: their Jacobians cost.
+    """
+    if effect.internal or effect.velocity_dependent or effect.dissipative:
+        return False
+    zeros = np.zeros((n_particles, dim))
+    return effect.jacobians(zeros, zeros) == (None, None)
+
+
+def plan(system) -> tuple[list[bool], tuple]:
+    """Which effects are constant (:func:`is_constant`) and the kernels of the others."""
+    constant = [is_constant(e, system.n_particles, system.dim) for e in system.effects]
+    kernels = tuple(type(e).kernel for e, c in zip(system.effects, constant, strict=True) if not c)
+    return constant, kernels
+
+
+class ForceModel:
+    """The effects of a System as compiled kernels with their parameters.
+
+    Constant forces (:func:`is_constant`: gravity) are summed once into ``f0`` from the
+    effects' own ``force``; the loops start every force evaluation from ``f0`` (restored in
+    the pass that reads the forces), so a constant effect costs no pass per step.
+
+    Attributes
+    ----------
+    kernels : tuple of callable
+        The ``kernel`` functions of the other effects, in the System's summation order.
+    params : tuple of tuple
+        Their :meth:`~mslab.effects.Effect.kernel_params`, as the kernels take them.
+    f0 : ndarray, shape (n_particles, dim)
+        The sum of the constant forces.
+    inv_mass : ndarray, shape (n_particles,)
+        ``1/m`` (0 for pinned particles).
+    w : ndarray, shape (n_particles * dim,)
+        ``inv_mass`` repeated per coordinate (the loops' flat passes).
+    module : module
+        The compiled loops for these kernels (:func:`mslab.fast.compose.module_for`).
+    """
+
+    def __init__(self, system):
+        reason = kernel_reason(system)
+        if reason is not None:
+            raise ValueError(reason)
+        shape = (system.n_particles, system.dim)
+        constant, self.kernels = plan(system)
+        varying = [e for e, c in zip(system.effects, constant, strict=True) if not c]
+        self.f0 = np.zeros(shape)
+        for e, c in zip(system.effects, constant, strict=True):
+            if c:
+                self.f0 += e.force(np.zeros(shape), np.zeros(shape))
+        self.params = tuple(tuple(_param(p) for p in e.kernel_params()) for e in varying)
+        self.inv_mass = np.ascontiguousarray(system.inv_mass, dtype=np.float64)
+        self.w = np.repeat(self.inv_mass, system.dim)
+        self.module = compose.module_for(self.kernels)
+
+    def rhs(self, x: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, float]:
+        """Acceleration (n_particles, dim) and dissipated power: ``System.rhs`` compiled, not counted."""
+        a = np.empty(np.shape(x))
+        p = self.module.rhs(_f64(x), _f64(v), a, self.w, self.f0, self.params)
+        return a, float(p)
+
+    def force(self, x: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, float]:
+        """Total force (n_particles, dim) and dissipated power from the kernels, not counted."""
+        f = self.f0.copy()
+        p = self.module.scene_forces(_f64(x), _f64(v), f, self.params)
+        return f, float(p)
+
+
+def _f64(a) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=np.float64)

@@ -1,0 +1,114 @@
+"""The compiled steps of ``simulate``: chunks of the family's loop over the scene's kernels."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mslab.fast.model import ForceModel
+from mslab.state import State
+
+#: the one-stage tableau of a kick whose forces do not depend on velocity: ``v += b h a``
+_EULER = (np.zeros((1, 1)), np.ones(1))
+
+
+class Stepper:
+    """Runs the steps of ``simulate`` in compiled chunks (built by :func:`mslab.fast.stepper`).
+
+    The loop is the one the method names (``Integrator.compiled``): ``"explicit_rk"`` over
+    ``(A, b)``, ``"splitting"`` over ``(drift, kick)``, ``"verlet"`` or ``"leapfrog"``.
+    Counts ``n_force`` on the System exactly as the numpy loop does (the loops return it).
+    """
+
+    #: most steps per compiled call
+    max_chunk: int = 10000
+
+    def __init__(self, system, integrator):
+        self.system = system
+        self.integrator = integrator
+        self.model = ForceModel(system)
+        self.loop, arrays = integrator.compiled
+        self.arrays = tuple(np.ascontiguousarray(a, dtype=np.float64) for a in arrays)
+        work = system.n_particles + sum(np.size(p[0]) for p in self.model.params if p and np.ndim(p[0]))
+        # (particles + the first array of each kernel: springs, anchors)
+        #: steps per compiled call: about 10^7 particle+element updates (0.1 s), so Ctrl-C and the
+        #: progress bar answer within a fraction of a second
+        self.chunk = int(min(self.max_chunk, max(1, 10**7 // max(1, work * integrator.n_stages))))
+        self._x = self._v = None
+        self._mem = None
+
+    def advance(self, state: State, dt: float, step: int, stop: int, saved: np.ndarray, k: int,
+                xs: np.ndarray, vs: np.ndarray, ds: np.ndarray, limit: float):
+        """Steps ``step+1 .. stop`` from ``state`` (the state after ``step``).
+
+        Fills ``xs, vs, ds`` at the indices ``saved[k:]`` reached. Returns
+        ``(step, k, state, ok)``; ``ok`` is False when step ``step`` blew up.
+        """
+        if self._x is None:
+            self._x = np.array(state.x, dtype=np.float64, order="C")
+            self._v = np.array(state.v, dtype=np.float64, order="C")
+            self._mem = self._memory(state)
+        out = self._run(self._x, self._v, float(state.dissipated), self._mem,
+                        (float(dt), step, stop, saved, k, xs, vs, ds, float(limit)))
+        new_step, k, dissipated, status, n_force = out
+        self.system.counters.n_force += n_force
+        state = State(self._x.copy(), self._v.copy(), self._memory_tuple(), dissipated)
+        return new_step, k, state, status == self.model.module.OK
+
+    def warm(self) -> None:
+        """Load (or compile) the loop now, by a call of zero steps with the argument types of
+        ``simulate``: the cost stays out of the run's wall time (``Stats.wall_time`` times
+        the stepping, as the README's timing rule says)."""
+        shape = (self.system.n_particles, self.system.dim)
+        x, v = np.zeros(shape), np.zeros(shape)
+        empty = np.empty((0,) + shape)
+        mem = self._memory(State(x, v, (), 0.0), blank=True)
+        self._run(x, v, 0.0, mem, (1.0, 0, 0, np.zeros(0, dtype=np.int64), 0, empty, empty, np.empty(0), 1.0))
+
+    def _run(self, x, v, dissipated: float, mem: tuple, common: tuple):
+        """One call of the family's loop; ``common`` = (dt, step, stop, saved, k, xs, vs, ds, limit)."""
+        mod, ig, system = self.model.module, self.integrator, self.system
+        model = (self.model.w, self.model.f0, self.model.params)
+        if self.loop == "explicit_rk":
+            A, b = self.arrays
+            return mod.run_explicit_rk(x, v, dissipated, A, b, *common, *model)
+        if self.loop == "splitting":
+            drift, kick = self.arrays
+            mem_a, mem_p = mem
+            reuse = bool(ig.fsal and not system.velocity_dependent)
+            kA, kb = (ig.kick_method.A, ig.kick_method.b) if system.velocity_dependent else _EULER
+            return mod.run_splitting(x, v, dissipated, drift, kick, reuse, np.ascontiguousarray(kA),
+                                     np.ascontiguousarray(kb), mem_a, mem_p, *common, *model)
+        mem_x, mem_a, mem_p = mem
+        code = mod.VERLET if self.loop == "verlet" else mod.LEAPFROG
+        return mod.run_two_step(code, x, v, dissipated, mem_x, mem_a, mem_p, *common,
+                                bool(system.velocity_dependent), *model)
+
+    def _memory(self, state: State, blank: bool = False):
+        """Memory arrays of the loop from the numpy ``start`` (zeros when ``blank``)."""
+        shape = state.x.shape
+        if self.loop == "splitting":
+            mem_a, mem_p = np.zeros(shape), np.zeros(1)
+            if state.memory:
+                mem_a[:], mem_p[0] = state.memory
+            return mem_a, mem_p
+        mem_x, mem_a, mem_p = np.zeros(shape), np.zeros(shape), np.zeros(1)
+        if blank:
+            return mem_x, mem_a, mem_p
+        if self.loop == "verlet":
+            mem_x[:], mem_p[0] = state.memory
+        elif self.loop == "leapfrog":
+            mem_x[:], mem_a[:], mem_p[0] = state.memory
+        return mem_x, mem_a, mem_p
+
+    def _memory_tuple(self) -> tuple:
+        if self.loop == "explicit_rk":
+            return ()
+        if self.loop == "splitting":
+            if not (self.integrator.fsal and not self.system.velocity_dependent):
+                return ()
+            mem_a, mem_p = (m.copy() for m in self._mem)
+            return (mem_a, float(mem_p[0]))
+        mem_x, mem_a, mem_p = (m.copy() for m in self._mem)
+        if self.loop == "verlet":
+            return (mem_x, float(mem_p[0]))
+        return (mem_x, mem_a, float(mem_p[0]))
