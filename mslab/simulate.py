@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import time
 import warnings
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -33,6 +34,9 @@ from mslab.scenes.builder import Scene
 from mslab.threads import single_threaded_blas
 from mslab.trajectory import Energy, Stats, Trajectory
 
+if TYPE_CHECKING:
+    from mslab.system import System
+
 
 class SimulationInterrupted(KeyboardInterrupt):
     """Ctrl-C during ``simulate``: ``.trajectory`` holds what was computed."""
@@ -43,7 +47,7 @@ class SimulationInterrupted(KeyboardInterrupt):
 
 
 def step_count(t_end: float, dt: float) -> int:
-    """Number of fixed steps of size dt that reach t_end exactly; ValueError otherwise."""
+    """Return the number of fixed steps of size dt that reach t_end exactly; ValueError otherwise."""
     if not (np.isfinite(dt) and dt > 0):
         raise ValueError(f"dt must be a finite number > 0, got {dt!r}")
     if not (np.isfinite(t_end) and t_end > 0):
@@ -170,8 +174,10 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
                           ds[:k].copy()), stats, complete, scene.name)
 
     def energy_error(j: int) -> InstabilityError:
-        """The run is reported as stopped at sample j, whose ledger grew: steps, time and the
-        work counted up to that sample (samples [0, j) kept)."""
+        """Report the run as stopped at sample j, whose ledger grew.
+
+        Steps, time and the work counted up to that sample (samples [0, j) kept).
+        """
         step = int(saved[j])
         seconds, counted = marks[j]
         stats.wall_time, stats.steps = seconds - start, step
@@ -266,7 +272,7 @@ def _hint(stable_dt: float | None) -> str:
 
 
 def initial_energy_scale(scene: Scene) -> float:
-    """An energy the scene's physics can never exceed by orders of magnitude, from the start.
+    """Return an energy the scene's physics can never exceed by orders of magnitude, from the start.
 
     ``K0 + |U0| + sum_gravity m |g| L`` with ``L = 1 + max |x0|`` (the scene's size seen
     from the origin, where colliders usually sit): the initial kinetic and potential
@@ -307,7 +313,7 @@ def _check_stability(scene: Scene, integrator: Integrator, dt: float, stable_dt:
     return predicted if stable_dt is None else stable_dt
 
 
-def _close(stats: Stats, system, before: dict, start: float, steps: int, bar) -> None:
+def _close(stats: Stats, system: System, before: dict, start: float, steps: int, bar: object) -> None:
     stats.wall_time = time.perf_counter() - start
     stats.steps = max(steps, 0)  # steps taken; a failing step is counted with its work
     for key, value in system.counters.since(before).items():

@@ -16,6 +16,9 @@ import numpy as np
 from mslab.effects.base import Effect
 
 if TYPE_CHECKING:  # scipy.sparse is imported on first use: `import mslab` stays cheap
+    from collections.abc import Iterable
+
+    import numpy.typing as npt
     import scipy.sparse as sp
 
 
@@ -47,11 +50,11 @@ class Counters:
     n_lin_iter: int = 0
 
     def snapshot(self) -> dict:
-        """The counters as a dict."""
+        """Return the counters as a dict."""
         return {f.name: getattr(self, f.name) for f in fields(Counters)}
 
     def since(self, before: dict) -> dict:
-        """The work done since ``before`` (a :meth:`snapshot`)."""
+        """Return the work done since ``before`` (a :meth:`snapshot`)."""
         return {k: v - before[k] for k, v in self.snapshot().items()}
 
 
@@ -78,7 +81,7 @@ class System:
     counters : Counters
     """
 
-    def __init__(self, mass, pinned, effects, dim: int):
+    def __init__(self, mass: npt.ArrayLike, pinned: npt.ArrayLike, effects: Iterable[Effect], dim: int):
         self.mass = np.asarray(mass, dtype=float)
         self.pinned = np.asarray(pinned, dtype=bool)
         self.inv_mass = np.where(self.pinned, 0.0, 1.0 / self.mass)
@@ -99,7 +102,7 @@ class System:
         return f
 
     def acceleration(self, x: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """``a = M^-1 sum_e f_e(x, v)``, shape (n_particles, dim). Counts one n_force."""
+        """Return ``a = M^-1 sum_e f_e(x, v)``, shape (n_particles, dim). Counts one n_force."""
         self.counters.n_force += 1
         return self._inv_mass_col * self.force(x, v)
 
@@ -161,6 +164,7 @@ class System:
         return float(sum(e.power(x, v) for e in self.effects if e.dissipative))
 
     def effect_names(self) -> list[str]:
+        """Return the names of the scene's effects, in summation order."""
         return [e.name for e in self.effects]
 
     def __repr__(self) -> str:

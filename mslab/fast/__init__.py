@@ -25,9 +25,15 @@ from __future__ import annotations
 
 import os
 import time
+from typing import TYPE_CHECKING
 
 from mslab.fast.model import ForceModel, kernel_reason
 from mslab.fast.runner import Stepper
+
+if TYPE_CHECKING:
+    from mslab.integrators.base import Integrator
+    from mslab.state import State
+    from mslab.system import System
 
 BACKENDS = ("auto", "numba", "numpy")
 
@@ -40,7 +46,7 @@ COMPILE_SECONDS = 6.5
 
 
 def check_backend(name: str | None) -> str:
-    """The backend name (``None``: ``$MSLAB_BACKEND`` or ``"auto"``); ValueError if unknown."""
+    """Return the backend name (``None``: ``$MSLAB_BACKEND`` or ``"auto"``); ValueError if unknown."""
     if name is None:
         name = os.environ.get("MSLAB_BACKEND", "").strip() or "auto"
     name = str(name).strip().lower()
@@ -49,7 +55,7 @@ def check_backend(name: str | None) -> str:
     return name
 
 
-def unsupported(system, integrator) -> str | None:
+def unsupported(system: System, integrator: Integrator) -> str | None:
     """Why the compiled stepping loop cannot run this system and method (None: it can)."""
     from mslab.system import System
 
@@ -63,10 +69,12 @@ def unsupported(system, integrator) -> str | None:
     return None
 
 
-def worth_compiling(system, integrator, n_steps: int, state0) -> bool:
-    """Whether ``auto`` runs these steps compiled: the numpy loop's predicted time exceeds
-    the cost of starting the compiled loops (0 once loaded in this process,
-    :data:`LOAD_SECONDS` from numba's cache, :data:`COMPILE_SECONDS` to compile them).
+def worth_compiling(system: System, integrator: Integrator, n_steps: int, state0: State) -> bool:
+    """Decide whether ``auto`` runs these steps compiled.
+
+    True when the numpy loop's predicted time exceeds the cost of starting the compiled
+    loops (0 once loaded in this process, :data:`LOAD_SECONDS` from numba's cache,
+    :data:`COMPILE_SECONDS` to compile them).
 
     The numpy time is the best of a few uncounted force evaluations (``System.force``),
     times the evaluations of the run, times 1.5 for the integrator's own array work.
@@ -89,8 +97,9 @@ def worth_compiling(system, integrator, n_steps: int, state0) -> bool:
     return n_steps * max(1, integrator.n_stages) * per_eval * 1.5 > start_cost
 
 
-def stepper(system, integrator, backend: str | None = None, n_steps: int | None = None, state0=None):
-    """A compiled :class:`~mslab.fast.runner.Stepper` for this run, or None for the numpy loop.
+def stepper(system: System, integrator: Integrator, backend: str | None = None, n_steps: int | None = None,
+            state0: State | None = None) -> Stepper | None:
+    """Return a compiled :class:`~mslab.fast.runner.Stepper` for this run, or None for the numpy loop.
 
     ``backend="numba"`` raises ValueError when the compiled loop does not apply; ``"auto"``
     with ``n_steps`` and ``state0`` also weighs the run's length (:func:`worth_compiling`).

@@ -68,7 +68,7 @@ def _template() -> str:
 
 
 def source(kernels: Sequence[Callable]) -> str:
-    """The generated module's text for these kernels, in summation order."""
+    """Return the generated module's text for these kernels, in summation order."""
     lines = [_template().rstrip() + "\n", "", f"{_MARKER}"]
     for n, kern in enumerate(kernels):
         body = inspect.getsource(kern)
@@ -94,16 +94,21 @@ def _path(text: str) -> tuple[str, Path]:
 
 
 def state(kernels: Sequence[Callable]) -> str:
-    """``"loaded"`` (in this process), ``"cached"`` (generated before: numba loads it from its
-    cache) or ``"new"`` (numba compiles it: seconds)."""
+    """Return where the loops for these kernels come from.
+
+    ``"loaded"`` (in this process), ``"cached"`` (generated before: numba loads it from its
+    cache) or ``"new"`` (numba compiles it: seconds).
+    """
     if _key(kernels) in _modules:
         return "loaded"
     return "cached" if _path(source(kernels))[1].exists() else "new"
 
 
 def _write_once(path: Path, text: str) -> None:
-    """Write ``path`` atomically, never replacing a complete copy another process wrote first
-    (a new time stamp would void numba's cache of it)."""
+    """Write ``path`` atomically, never replacing a complete copy another process wrote first.
+
+    A new time stamp would void numba's cache of it.
+    """
     fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
@@ -121,7 +126,7 @@ def _write_once(path: Path, text: str) -> None:
 
 
 def module_for(kernels: Sequence[Callable]) -> ModuleType:
-    """The compiled loops for these kernels (generated, written and imported once per process)."""
+    """Return the compiled loops for these kernels (generated, written and imported once per process)."""
     key = _key(kernels)
     if key in _modules:
         return _modules[key]

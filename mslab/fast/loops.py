@@ -62,7 +62,7 @@ def _drift(xf, vf, hd):
 
 @njit(cache=True, error_model="numpy")
 def _kick(xf, vf, ff, f0f, w, h, hd, limit):
-    """``a = w f; f = f0; v += h a; x += hd v`` in one pass; returns the count of bad entries."""
+    """Do ``a = w f; f = f0; v += h a; x += hd v`` in one pass; return the count of bad entries."""
     count = 0
     for e in range(xf.size):
         aq = w[e] * ff[e]
@@ -107,7 +107,7 @@ def _kick_with(xf, vf, af, h, hd, limit):
 @njit(cache=True, error_model="numpy")
 def run_explicit_rk(x, v, dissipated, A, b, dt, step, n_steps, saved, k, xs, vs, ds, limit,
                     w, f0, params):
-    """Steps of an explicit Runge-Kutta tableau (seed eqs. 16-20), ``y = (x, v)``, ``F = (v, a)``.
+    """Take steps of an explicit Runge-Kutta tableau (seed eqs. 16-20), ``y = (x, v)``, ``F = (v, a)``.
 
     ``Y_s = y_n + h sum_{r<s} A_sr K_r``, ``y_{n+1} = y_n + h sum_s b_s K_s``; the dissipated
     work gets the weights ``b`` too. ``kx[s]`` is the stage velocity, ``kv[s]`` its acceleration.
@@ -172,7 +172,7 @@ def run_explicit_rk(x, v, dissipated, A, b, dt, step, n_steps, saved, k, xs, vs,
 @njit(cache=True, error_model="numpy")
 def run_splitting(x, v, dissipated, drift, kick, reuse, kA, kb, mem_a, mem_p,
                   dt, step, n_steps, saved, k, xs, vs, ds, limit, w, f0, params):
-    """Steps of a drift/kick splitting (``mslab/integrators/splitting.py``).
+    """Take steps of a drift/kick splitting (``mslab/integrators/splitting.py``).
 
     ``x += a_0 h v; v += b_0 h a; x += a_1 h v; ...; x += a_k h v`` with ``a = drift``,
     ``b = kick``. ``reuse``: the first kick takes the acceleration of the previous step's
@@ -264,7 +264,7 @@ def run_splitting(x, v, dissipated, drift, kick, reuse, kA, kb, mem_a, mem_p,
 @njit(cache=True, error_model="numpy")
 def run_two_step(method, x, v, dissipated, mem_x, mem_a, mem_p, dt, step, n_steps, saved, k,
                  xs, vs, ds, limit, velocity_dependent, w, f0, params):
-    """Steps of Verlet and leapfrog (``mslab/integrators/two_step.py``, seed eqs. 21-26).
+    """Take steps of Verlet and leapfrog (``mslab/integrators/two_step.py``, seed eqs. 21-26).
 
     One force evaluation ``a = a(X, V)`` per step:
 
@@ -338,5 +338,5 @@ def run_two_step(method, x, v, dissipated, mem_x, mem_a, mem_p, dt, step, n_step
 # ``f += sum_e kernel_e(x, v, f, *params[e])`` over the effects that are not constant,
 # returning the summed dissipated power.
 def scene_forces(x, v, f, params):
-    """Placeholder of the template (never compiled)."""
+    """Stand in for the scene's forces in the template (never compiled)."""
     raise NotImplementedError("mslab.fast.loops is a template; use mslab.fast.compose")

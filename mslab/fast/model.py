@@ -2,21 +2,27 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from mslab.fast import compose
 
+if TYPE_CHECKING:
+    from mslab.effects.base import Effect
+    from mslab.system import System
 
-def kernel_reason(system) -> str | None:
-    """Why the effects of ``system`` cannot be compiled (None: every effect has a kernel)."""
+
+def kernel_reason(system: System) -> str | None:
+    """Say why the effects of ``system`` cannot be compiled (None: every effect has a kernel)."""
     missing = [e.name for e in system.effects if getattr(e, "kernel", None) is None]
     if missing:
         return f"effects {missing} have no compiled kernel"
     return None
 
 
-def _param(value):
-    """A kernel parameter as the compiled code wants it.
+def _param(value: object) -> object:
+    """Return a kernel parameter as the compiled code wants it.
 
     Arrays become C-contiguous; index arrays (int64) whose values fit are narrowed to int32
     (half the memory traffic of a spring's indices); bools become ints; floats stay floats.
@@ -33,8 +39,8 @@ def _param(value):
     return value
 
 
-def is_constant(effect, n_particles: int, dim: int) -> bool:
-    """Whether the effect's force is one fixed array for the whole run (gravity).
+def is_constant(effect: Effect, n_particles: int, dim: int) -> bool:
+    """Decide whether the effect's force is one fixed array for the whole run (gravity).
 
     By the effect protocol: an external force (not ``internal``) that depends on neither
     position nor velocity (both Jacobian blocks ``None``, "identically zero") and
@@ -46,8 +52,8 @@ def is_constant(effect, n_particles: int, dim: int) -> bool:
     return effect.jacobians(zeros, zeros) == (None, None)
 
 
-def plan(system) -> tuple[list[bool], tuple]:
-    """Which effects are constant (:func:`is_constant`) and the kernels of the others."""
+def plan(system: System) -> tuple[list[bool], tuple]:
+    """Find which effects are constant (:func:`is_constant`) and the kernels of the others."""
     constant = [is_constant(e, system.n_particles, system.dim) for e in system.effects]
     kernels = tuple(type(e).kernel for e, c in zip(system.effects, constant, strict=True) if not c)
     return constant, kernels
@@ -76,7 +82,7 @@ class ForceModel:
         The compiled loops for these kernels (:func:`mslab.fast.compose.module_for`).
     """
 
-    def __init__(self, system):
+    def __init__(self, system: System):
         reason = kernel_reason(system)
         if reason is not None:
             raise ValueError(reason)
@@ -93,17 +99,17 @@ class ForceModel:
         self.module = compose.module_for(self.kernels)
 
     def rhs(self, x: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, float]:
-        """Acceleration (n_particles, dim) and dissipated power: ``System.rhs`` compiled, not counted."""
+        """Return acceleration (n_particles, dim) and dissipated power: ``System.rhs`` compiled, uncounted."""
         a = np.empty(np.shape(x))
         p = self.module.rhs(_f64(x), _f64(v), a, self.w, self.f0, self.params)
         return a, float(p)
 
     def force(self, x: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, float]:
-        """Total force (n_particles, dim) and dissipated power from the kernels, not counted."""
+        """Return the total force (n_particles, dim) and dissipated power from the kernels, not counted."""
         f = self.f0.copy()
         p = self.module.scene_forces(_f64(x), _f64(v), f, self.params)
         return f, float(p)
 
 
-def _f64(a) -> np.ndarray:
+def _f64(a: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(a, dtype=np.float64)

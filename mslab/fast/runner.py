@@ -2,10 +2,16 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from mslab.fast.model import ForceModel
 from mslab.state import State
+
+if TYPE_CHECKING:
+    from mslab.integrators.base import Integrator
+    from mslab.system import System
 
 #: the one-stage tableau of a kick whose forces do not depend on velocity: ``v += b h a``
 _EULER = (np.zeros((1, 1)), np.ones(1))
@@ -22,7 +28,7 @@ class Stepper:
     #: most steps per compiled call
     max_chunk: int = 10000
 
-    def __init__(self, system, integrator):
+    def __init__(self, system: System, integrator: Integrator):
         self.system = system
         self.integrator = integrator
         self.model = ForceModel(system)
@@ -37,8 +43,8 @@ class Stepper:
         self._mem = None
 
     def advance(self, state: State, dt: float, step: int, stop: int, saved: np.ndarray, k: int,
-                xs: np.ndarray, vs: np.ndarray, ds: np.ndarray, limit: float):
-        """Steps ``step+1 .. stop`` from ``state`` (the state after ``step``).
+                xs: np.ndarray, vs: np.ndarray, ds: np.ndarray, limit: float) -> tuple[int, int, State, bool]:
+        """Take steps ``step+1 .. stop`` from ``state`` (the state after ``step``).
 
         Fills ``xs, vs, ds`` at the indices ``saved[k:]`` reached. Returns
         ``(step, k, state, ok)``; ``ok`` is False when step ``step`` blew up.
@@ -55,16 +61,18 @@ class Stepper:
         return new_step, k, state, status == self.model.module.OK
 
     def warm(self) -> None:
-        """Load (or compile) the loop now, by a call of zero steps with the argument types of
-        ``simulate``: the cost stays out of the run's wall time (``Stats.wall_time`` times
-        the stepping, as the README's timing rule says)."""
+        """Load (or compile) the loop now, by a call of zero steps.
+
+        The call has the argument types of ``simulate``, so the cost stays out of the run's
+        wall time (``Stats.wall_time`` times the stepping, as the README's timing rule says).
+        """
         shape = (self.system.n_particles, self.system.dim)
         x, v = np.zeros(shape), np.zeros(shape)
         empty = np.empty((0,) + shape)
         mem = self._memory(State(x, v, (), 0.0), blank=True)
         self._run(x, v, 0.0, mem, (1.0, 0, 0, np.zeros(0, dtype=np.int64), 0, empty, empty, np.empty(0), 1.0))
 
-    def _run(self, x, v, dissipated: float, mem: tuple, common: tuple):
+    def _run(self, x: np.ndarray, v: np.ndarray, dissipated: float, mem: tuple, common: tuple):
         """One call of the family's loop; ``common`` = (dt, step, stop, saved, k, xs, vs, ds, limit)."""
         mod, ig, system = self.model.module, self.integrator, self.system
         model = (self.model.w, self.model.f0, self.model.params)
