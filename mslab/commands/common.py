@@ -3,15 +3,13 @@
 from __future__ import annotations
 
 import json
-import os
-import stat
 import sys
-import tempfile
-from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+from mslab.files import atomic_write  # noqa: F401  (the commands import it from here)
 
 if TYPE_CHECKING:
     import argparse
@@ -109,52 +107,6 @@ def method_help(what: str = "integrator") -> str:
     from mslab.integrators.base import methods
 
     return f"{what}: {', '.join(methods())} (details: `mslab methods`)"
-
-
-def atomic_write(path: str | Path, write: Callable[[str], None], suffix: str | None = None) -> Path:
-    """Call ``write(tmp_path)``, then rename tmp to ``path``: readers never see a half file.
-
-    The temporary file sits in the same folder (same file system, so the rename is atomic)
-    and is removed if ``write`` fails or is interrupted. The finished file has the mode an
-    ordinary ``open(path, "w")`` would give it (``0o666`` less the umask; an existing file
-    keeps its mode), not the ``0o600`` of the temporary file, so a course server can serve it.
-    """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    mode = _file_mode(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=suffix or path.suffix, dir=path.parent)
-    os.close(fd)
-    try:
-        write(tmp)
-        os.chmod(tmp, mode)  # mkstemp made it 0600; the finished file gets the umask's mode
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
-
-
-def current_umask() -> int:
-    """Return the process's umask (read without changing it where ``/proc`` tells it)."""
-    try:
-        with open("/proc/self/status", encoding="ascii") as fh:
-            for line in fh:
-                if line.startswith("Umask:"):
-                    return int(line.split()[1], 8)
-    except (OSError, ValueError, IndexError):
-        pass
-    mask = os.umask(0o022)  # no /proc: set and restore (not thread-safe, but brief)
-    os.umask(mask)
-    return mask
-
-
-def _file_mode(path: Path) -> int:
-    """Mode for a new file at ``path``: an existing file's mode, else ``0o666 & ~umask``."""
-    try:
-        return stat.S_IMODE(os.stat(path).st_mode)
-    except OSError:
-        return 0o666 & ~current_umask()
 
 
 def save_figure(fig: Figure, path: str | Path) -> Path:

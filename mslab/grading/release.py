@@ -9,6 +9,7 @@ import shutil
 import tempfile
 from pathlib import Path
 
+from mslab.files import current_umask
 from mslab.grading.layout import BEGIN, END, EXERCISE_NAME, HIDDEN
 
 #: never copied into a release
@@ -79,12 +80,6 @@ def strip_solutions(text: str, filename: str = "<source>") -> str:
     except SyntaxError as err:
         raise ValueError(f"{filename}: the student version does not parse: {err}") from None
     return result
-
-
-def _umask() -> int:
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
 
 
 def solution_lines(text: str) -> list[str]:
@@ -175,7 +170,7 @@ def release(src: str | Path, dest: str | Path, force: bool = False,
         if not (tmp / "README.md").exists():
             (tmp / "README.md").write_text(STUDENT_README)
             written.append(dest / "README.md")
-        os.chmod(tmp, 0o777 & ~_umask())
+        os.chmod(tmp, 0o777 & ~current_umask())
         if dest.exists():
             shutil.rmtree(dest)
         os.replace(tmp, dest)

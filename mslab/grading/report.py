@@ -11,10 +11,11 @@ import csv
 import hashlib
 import json
 import os
-import tempfile
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
+
+from mslab.files import atomic_write
 
 if TYPE_CHECKING:
     from mslab.grading.autograde import SubmissionResult
@@ -59,30 +60,15 @@ def gradebook_rows(results: Sequence[SubmissionResult]) -> list[list[str]]:
     return rows
 
 
-def umask() -> int:
-    """Return the process's umask (set and restored)."""
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
 def write_csv(path: str | Path, rows: list[list[str]]) -> Path:
     """Write the gradebook atomically (temporary file, then rename) with the umask's permissions."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}-", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", newline="") as fh:
+    def write(tmp: str) -> None:
+        with open(tmp, "w", newline="") as fh:
             csv.writer(fh).writerows(rows)
             fh.flush()
             os.fsync(fh.fileno())
-        os.chmod(tmp, 0o666 & ~umask())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
+
+    return atomic_write(path, write)
 
 
 class Journal:
