@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint lessons bench clean venv
+.PHONY: demo test lint lessons site bench clean venv
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -23,6 +23,10 @@ test: $(STAMP)
 	$(VENV)/bin/ruff check .
 	$(PY) -m pytest -q -n 2 --dist loadfile tests
 	$(PY) -m pytest -q -p no:randomly --nbval --nbval-current-env --nbval-sanitize-with lessons/sanitize.cfg lessons/
+
+# re-execute every lesson in place (stored outputs then match the library; nbval checks them)
+lessons: $(STAMP)
+	$(PY) lessons/run_all.py
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .
