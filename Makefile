@@ -28,6 +28,10 @@ test: $(STAMP)
 lessons: $(STAMP)
 	$(PY) lessons/run_all.py
 
+# the course as an offline static website in site/ (local MathJax; tools/build_site.py)
+site: $(STAMP)
+	$(PY) tools/build_site.py --out site
+
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .
 
@@ -35,4 +39,4 @@ bench: $(STAMP)
 	$(PY) -m mslab.cli bench
 
 clean:
-	rm -rf $(VENV) out .pytest_cache
+	rm -rf $(VENV) out site .pytest_cache
