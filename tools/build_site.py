@@ -36,7 +36,14 @@ TEMPLATES = Path(__file__).resolve().parent / "site_template"
 MATHJAX_PARTS = ("MathJax.js", f"config/{MATHJAX_CONFIG}.js", "config/Safe.js", "config/local",
                  "extensions", "jax/input/TeX", "jax/output/CommonHTML", "jax/element",
                  "fonts/HTML-CSS/TeX/woff", "localization/en")
-EXTERNAL_SCRIPT = re.compile(r"<script[^>]*\bsrc=\"https?://[^\"]*\"[^>]*>\s*</script>\s*", re.I)
+EXTERNAL = re.compile(r"<(script|link|img)\b[^>]*\b(src|href)=\"(https?:)?//[^\"]*\"", re.I)
+#: matplotlib's ``to_jshtml`` animations style their buttons with Font Awesome from a CDN: the site
+#: drops that stylesheet and shows the same buttons as plain characters
+FONT_AWESOME = re.compile(r"<link rel=\"stylesheet\"\s+href=\"https://[^\"]*font-awesome[^\"]*\">\s*")
+ICONS = {"fa-minus": "&minus;", "fa-plus": "+", "fa-fast-backward": "&#x23EE;",
+         "fa-step-backward": "&#x25C1;|", "fa-play fa-flip-horizontal": "&#x25C0;",
+         "fa-pause": "&#x2759;&#x2759;", "fa-play": "&#x25B6;",
+         "fa-step-forward": "|&#x25B7;", "fa-fast-forward": "&#x23ED;"}
 MATH = re.compile(r"\$\$.+?\$\$|\$[^$\n]+?\$", re.S)
 
 #: no favicon request (it would be a 404 in the browser's console)
@@ -134,8 +141,11 @@ def notebook_page(path: Path, title: str) -> str:
     exporter = HTMLExporter(template_name="offline", extra_template_basedirs=[str(TEMPLATES)])
     exporter.mathjax_url = f"../mathjax/MathJax.js?config={MATHJAX_CONFIG},Safe"
     page, _ = exporter.from_notebook_node(nbformat.read(path, as_version=4))
-    if EXTERNAL_SCRIPT.search(page):
-        raise SiteError(f"{path.name}: the page would load a script from the network")
+    page = FONT_AWESOME.sub("", page)
+    for name, glyph in ICONS.items():
+        page = page.replace(f'<i class="fa {name}"></i>', f"<span>{glyph}</span>")
+    if match := EXTERNAL.search(page):
+        raise SiteError(f"{path.name}: the page would load from the network: {match.group(0)[:120]}")
     page = page.replace("</head>", f'{FAVICON}<link rel="stylesheet" href="../style.css"></head>', 1)
     return re.sub(r"(<body[^>]*>)", lambda m: m.group(1) + nav("../", title), page, count=1)
 
