@@ -51,6 +51,11 @@ def _browser() -> str | None:
     return next((path for name in BROWSERS if (path := shutil.which(name))), None)
 
 
+class _QuietHandler(SimpleHTTPRequestHandler):
+    def log_message(self, *args) -> None:   # no line per request in the test output
+        pass
+
+
 class DevTools:
     """The few Chrome DevTools protocol calls the test needs, over one page's websocket."""
 
@@ -89,18 +94,18 @@ def site(tmp_path_factory) -> Path:
     spec = importlib.util.spec_from_file_location("build_site", ROOT / "tools" / "build_site.py")
     build_site = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(build_site)
-    out = tmp_path_factory.mktemp("site") / "site"
     try:
-        build_site.build(out)
+        build_site.find_mathjax()
     except build_site.SiteError as err:
         pytest.skip(f"site not built: {err}")
+    out = tmp_path_factory.mktemp("site") / "site"
+    build_site.build(out)      # any other build problem is a failure
     return out
 
 
 @pytest.fixture(scope="module")
 def server(site):
-    handler = partial(SimpleHTTPRequestHandler, directory=str(site))
-    handler.log_message = lambda *args: None
+    handler = partial(_QuietHandler, directory=str(site))
     httpd = ThreadingHTTPServer(("127.0.0.1", 0), handler)
     thread = threading.Thread(target=httpd.serve_forever, daemon=True)
     thread.start()

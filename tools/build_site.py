@@ -39,7 +39,7 @@ MATHJAX_PARTS = ("MathJax.js", f"config/{MATHJAX_CONFIG}.js", "config/Safe.js", 
 EXTERNAL = re.compile(r"<(script|link|img)\b[^>]*\b(src|href)=\"(https?:)?//[^\"]*\"", re.I)
 #: matplotlib's ``to_jshtml`` animations style their buttons with Font Awesome from a CDN: the site
 #: drops that stylesheet and shows the same buttons as plain characters
-FONT_AWESOME = re.compile(r"<link rel=\"stylesheet\"\s+href=\"https://[^\"]*font-awesome[^\"]*\">\s*")
+FONT_AWESOME = re.compile(r"<link\b[^>]*font-awesome[^>]*>\s*")
 ICONS = {"fa-minus": "&minus;", "fa-plus": "+", "fa-fast-backward": "&#x23EE;",
          "fa-step-backward": "&#x25C1;|", "fa-play fa-flip-horizontal": "&#x25C0;",
          "fa-pause": "&#x2759;&#x2759;", "fa-play": "&#x25B6;",
