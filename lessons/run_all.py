@@ -51,6 +51,7 @@ def execute(path: Path, timeout: int = 300) -> float:
     for cell in nb.cells:
         if cell.cell_type == "code":
             cell.outputs = coalesce_streams(cell.outputs)
+    nb.metadata.pop("widgets", None)           # widget state has random ids; a live kernel rebuilds it
     missing = [i for i, c in enumerate(nb.cells) if c.cell_type == "code" and c.execution_count is None]
     if missing:
         raise RuntimeError(f"{path.name}: code cells {missing} have no execution count")

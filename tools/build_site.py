@@ -44,6 +44,9 @@ ICONS = {"fa-minus": "&minus;", "fa-plus": "+", "fa-fast-backward": "&#x23EE;",
          "fa-step-backward": "&#x25C1;|", "fa-play fa-flip-horizontal": "&#x25C0;",
          "fa-pause": "&#x2759;&#x2759;", "fa-play": "&#x25B6;",
          "fa-step-forward": "|&#x25B7;", "fa-fast-forward": "&#x23ED;"}
+WIDGET = "application/vnd.jupyter.widget-view+json"
+WIDGET_NOTE = ("<p><em>Here an interactive control (ipywidgets) appears when the notebook runs in "
+               "Jupyter; the static version of the same figure follows.</em></p>")
 MATH = re.compile(r"\$\$.+?\$\$|\$[^$\n]+?\$", re.S)
 
 #: no favicon request (it would be a 404 in the browser's console)
@@ -140,7 +143,12 @@ def notebook_page(path: Path, title: str) -> str:
 
     exporter = HTMLExporter(template_name="offline", extra_template_basedirs=[str(TEMPLATES)])
     exporter.mathjax_url = f"../mathjax/MathJax.js?config={MATHJAX_CONFIG},Safe"
-    page, _ = exporter.from_notebook_node(nbformat.read(path, as_version=4))
+    nb = nbformat.read(path, as_version=4)
+    for cell in nb.cells:                       # widgets need a live kernel: say so in their place
+        for out in cell.get("outputs", []):
+            if WIDGET in out.get("data", {}):
+                out["data"] = {"text/html": WIDGET_NOTE}
+    page, _ = exporter.from_notebook_node(nb)
     page = FONT_AWESOME.sub("", page)
     for name, glyph in ICONS.items():
         page = page.replace(f'<i class="fa {name}"></i>', f"<span>{glyph}</span>")
