@@ -117,7 +117,8 @@ def server(site):
 def page(tmp_path_factory, server):
     profile = tmp_path_factory.mktemp("chromium-profile")
     proc = subprocess.Popen(
-        [_browser(), "--headless=new", "--no-sandbox", "--disable-gpu", "--no-first-run",
+        [_browser(), "--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+         "--no-first-run",
          "--disable-extensions", "--disable-background-networking", "--disable-component-update",
          "--disable-sync", "--disable-default-apps", "--remote-debugging-port=0",
          "--remote-allow-origins=*", f"--user-data-dir={profile}", "--window-size=1280,900",
