@@ -40,10 +40,10 @@ EXTERNAL = re.compile(r"<(script|link|img)\b[^>]*\b(src|href)=\"(https?:)?//[^\"
 #: matplotlib's ``to_jshtml`` animations style their buttons with Font Awesome from a CDN: the site
 #: drops that stylesheet and shows the same buttons as plain characters
 FONT_AWESOME = re.compile(r"<link\b[^>]*font-awesome[^>]*>\s*")
-ICONS = {"fa-minus": "&minus;", "fa-plus": "+", "fa-fast-backward": "&#x23EE;",
-         "fa-step-backward": "&#x25C1;|", "fa-play fa-flip-horizontal": "&#x25C0;",
-         "fa-pause": "&#x2759;&#x2759;", "fa-play": "&#x25B6;",
-         "fa-step-forward": "|&#x25B7;", "fa-fast-forward": "&#x23ED;"}
+ICONS = {"fa-minus": "&minus;", "fa-plus": "+", "fa-fast-backward": "|&#x25C0;",
+         "fa-step-backward": "&#x25C1;", "fa-play fa-flip-horizontal": "&#x25C0;",
+         "fa-pause": "&#x2759;&#x2759;", "fa-play": "&#x25B6;", "fa-step-forward": "&#x25B7;",
+         "fa-fast-forward": "&#x25B6;|"}
 WIDGET = "application/vnd.jupyter.widget-view+json"
 WIDGET_NOTE = ("<p><em>Here an interactive control (ipywidgets) appears when the notebook runs in "
                "Jupyter; the static version of the same figure follows.</em></p>")
