@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint lessons bench clean venv
+.PHONY: demo test lint lessons site bench clean venv
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -24,6 +24,14 @@ test: $(STAMP)
 	$(PY) -m pytest -q -n 2 --dist loadfile tests
 	$(PY) -m pytest -q -p no:randomly --nbval --nbval-current-env --nbval-sanitize-with lessons/sanitize.cfg lessons/
 
+# re-execute every lesson in place (stored outputs then match the library; nbval checks them)
+lessons: $(STAMP)
+	$(PY) lessons/run_all.py
+
+# the course as an offline static website in site/ (local MathJax; tools/build_site.py)
+site: $(STAMP)
+	$(PY) tools/build_site.py --out site
+
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .
 
@@ -31,4 +39,4 @@ bench: $(STAMP)
 	$(PY) -m mslab.cli bench
 
 clean:
-	rm -rf $(VENV) out .pytest_cache
+	rm -rf $(VENV) out site .pytest_cache

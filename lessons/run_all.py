@@ -2,11 +2,13 @@
 
 Usage (from the repository root)::
 
+    make lessons                                        # the same, for every lesson
     .venv/bin/python lessons/run_all.py                 # every lessons/NN_*.ipynb
     .venv/bin/python lessons/run_all.py lessons/01_euler_taylor.ipynb
 
 Each notebook runs top to bottom in a fresh ``python3`` kernel with ``lessons/`` as the
-working directory; cells tagged ``raises-exception`` may raise. Afterwards check them
+working directory; cells tagged ``raises-exception`` may raise. Widget state is not stored
+(its ids are random; a live kernel rebuilds it), so re-runs give clean diffs. Afterwards check them
 with nbval (twice, to be sure the outputs are reproducible)::
 
     .venv/bin/python -m pytest -q -p no:randomly --nbval --nbval-current-env \
@@ -51,6 +53,7 @@ def execute(path: Path, timeout: int = 300) -> float:
     for cell in nb.cells:
         if cell.cell_type == "code":
             cell.outputs = coalesce_streams(cell.outputs)
+    nb.metadata.pop("widgets", None)           # widget state has random ids; a live kernel rebuilds it
     missing = [i for i, c in enumerate(nb.cells) if c.cell_type == "code" and c.execution_count is None]
     if missing:
         raise RuntimeError(f"{path.name}: code cells {missing} have no execution count")
