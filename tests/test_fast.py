@@ -278,3 +278,18 @@ def test_generated_loops_fall_back_to_a_temporary_folder(tmp_path, monkeypatch):
     monkeypatch.setattr(tempfile, "tempdir", None)  # re-read TMPDIR
     folder = compose.cache_dir()
     assert folder.is_dir() and str(folder).startswith(str(tmp_path / "tmp"))
+
+
+def test_auto_decides_by_the_run_alone_not_by_history():
+    """The same run takes the same backend whether or not compiled loops were loaded before.
+
+    Both backends agree only to round-off, so a history-dependent choice would make printed
+    results (lessons under nbval) change with what ran earlier in the process.
+    """
+    scene = generators.chain(6, dim=2)
+    method = mslab.get_method("leapfrog")
+    short = fast.worth_compiling(scene.system, method, 500)
+    long = fast.worth_compiling(scene.system, method, 10**6)
+    mslab.simulate(scene, method, dt=1e-3, t_end=0.01, backend="numba")  # loaded now
+    again = tuple(fast.worth_compiling(scene.system, method, n) for n in (500, 10**6))
+    assert again == (short, long) == (False, True)
