@@ -19,7 +19,8 @@ from mslab.integrators.runge_kutta import ExplicitRK, ImplicitRK
 from mslab.integrators.splitting import Splitting
 from mslab.integrators.two_step import Leapfrog, Verlet
 
-_FRAMEWORK = {"base", "coefficients", "runge_kutta", "solvers", "splitting", "two_step"}
+_FRAMEWORK = {"base", "coefficients", "linear", "local_global", "local_step", "runge_kutta", "solvers",
+              "splitting", "two_step"}
 
 for _info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
     if _info.name not in _FRAMEWORK and not _info.name.startswith("_"):
