@@ -208,6 +208,7 @@ class StageSolver:
         self.modified_ok = False  # the last iteration contracted well enough for a modified step
         self.row_sum = 0.0
         self.last = ""  # how the last direction was found: "modified", "cg" or "factor"
+        self.mu = 4.0  # four times the next shift to try when A is indefinite
 
     def _assemble(self, point, r):
         X, V = point[0], point[1]
@@ -258,17 +259,22 @@ class StageSolver:
         return self.expand(self.factor.solve(b), r)
 
     def shifted_direction(self, r: np.ndarray) -> np.ndarray:
-        """A descent direction when ``A`` is indefinite: ``(A + mu M)^-1 (-M r)`` with ``mu`` doubled
-        from 1 until the shifted matrix is positive definite (each try one counted factorisation)."""
+        """A descent direction when ``A`` is indefinite: ``(A + mu M)^-1 (-M r)`` (Levenberg).
+
+        ``mu`` starts from a quarter of the last shift that worked (1 the first time) and is
+        multiplied by 4 until the shifted matrix is positive definite; each try is one counted
+        factorisation.
+        """
         A = self.factor.A
         M = sp.diags(self.mass_dofs[self.free]).tocsc()
-        mu = 1.0
+        mu = self.mu / 4.0
         for _ in range(40):
             shifted = Factor((A + mu * M).tocsc(), self.system.counters)
             if shifted.definite:
-                self.factor = shifted  # a definite preconditioner for later CG
+                self.factor, self.mu = shifted, mu  # a definite preconditioner for later CG
+                self.modified_ok = False
                 return self.expand(shifted.solve(self.rhs(r)), r)
-            mu *= 2.0
+            mu *= 4.0
         raise ArithmeticError("no positive definite shift of the Newton matrix found")
 
     def contracted(self, ratio: float) -> None:
