@@ -11,13 +11,15 @@ mslab's conservative and Rayleigh terms). ``A`` is the Hessian of the implicit E
 (:func:`objective`), so it is positive definite near a stable step and the step is a
 minimisation.
 
-**Factorisation** (:class:`Factor`). scipy has no sparse Cholesky and CHOLMOD's maintained
-binding (scikit-sparse) installs from no wheel here, so the definite case uses SuperLU in
-*symmetric mode*: a minimum-degree ordering of ``A + A^T`` applied to rows and columns alike
-and no row pivoting (``diag_pivot_thresh = 0``). That is an ``L D L^T`` factorisation written
-as ``L U``: the signs of ``U``'s diagonal are the inertia of ``A`` (Sylvester's law), so the
-factorisation itself tells whether ``A`` is positive definite. Up to :data:`DENSE_MAX`
-unknowns dense LAPACK (Cholesky, else LU) is faster.
+**Factorisation** (:class:`Factor`). Up to :data:`DENSE_MAX` unknowns dense LAPACK
+(Cholesky, else LU). Above, CHOLMOD's supernodal sparse Cholesky through cvxopt (a
+maintained binding with wheels; scikit-sparse has none for this Python here), about 10x
+faster than SuperLU on a 100 x 100 cloth's matrix; it fails on a matrix that is not
+positive definite. Then (or without cvxopt) SuperLU in *symmetric mode*: a minimum-degree
+ordering of ``A + A^T`` applied to rows and columns alike and no row pivoting
+(``diag_pivot_thresh = 0``). That is an ``L D L^T`` factorisation written as ``L U``: the
+signs of ``U``'s diagonal are the inertia of ``A`` (Sylvester's law), so the factorisation
+itself tells whether and how ``A`` is indefinite.
 
 **Fallback when A is not positive definite** (a compressed spring has negative stiffness
 across it; hard compression makes ``A`` indefinite). The symmetric-mode factors are used
@@ -27,12 +29,12 @@ compressed springs' stiffness would make every matrix definite, but was measured
 Newton's convergence at dt = 1/30 (issue 12): mslab keeps the exact Jacobian.
 
 **Reuse** (:class:`StageSolver`): a factorisation is kept between Newton iterations and
-steps. Each iteration takes the cheapest of (1) a *modified Newton* step with the kept
-factors (no Jacobian, one solve) while the residual contracted by at least
-:attr:`StageSolver.contraction` in the previous iteration, (2) an inexact Newton step by
-conjugate gradients on the current ``A`` preconditioned with the kept factors (the middle
-ground: one Jacobian, a few solves), (3) a fresh factorisation when CG is slow, meets
-negative curvature, or no definite factors are kept.
+steps. Each iteration takes (1) a *modified Newton* step with the kept factors (no
+Jacobian, one solve) when the contraction measured on the last such step predicts that the
+remaining modified steps cost less than a fresh factorisation (both timed as they run),
+else (2) an inexact Newton step by conjugate gradients on the current ``A`` preconditioned
+with the kept factors (the middle ground: one Jacobian, a few solves), else (3) a fresh
+factorisation when CG is slow, meets negative curvature, or no definite factors are kept.
 
 Counted on ``system.counters``: ``n_factor`` (every factorisation), ``n_solve`` (every
 Newton direction), ``n_lin_iter`` (every CG iteration), ``n_jac`` (every Jacobian).
@@ -69,15 +71,16 @@ class Factor:
     n_negative : int
         Negative pivots: the number of negative eigenvalues of ``A`` (-1: not known).
     kind : str
-        ``"cholesky"`` / ``"lu"`` (dense), ``"ldlt"`` (symmetric-mode SuperLU), ``"lu_pivoted"``.
+        ``"cholesky"`` / ``"lu"`` (dense), ``"cholmod"``, ``"ldlt"`` (symmetric-mode SuperLU),
+        ``"lu_pivoted"``.
     """
 
-    def __init__(self, A, counters):
+    def __init__(self, A, counters, definite_only: bool = False):
         start = time.perf_counter()
-        self._build(A, counters)
+        self._build(A, counters, definite_only)
         self.seconds = time.perf_counter() - start  # wall time of the factorisation
 
-    def _build(self, A, counters) -> None:
+    def _build(self, A, counters, definite_only: bool) -> None:
         counters.n_factor += 1
         self.A = A
         self.n_negative = -1
@@ -93,6 +96,11 @@ class Factor:
             return
         A = A.tocsc()
         self.A = A
+        if cholmod_factor(self, A):
+            return
+        if definite_only and _cholmod() is not None:  # the caller shifts A instead
+            self.kind, self.definite = "none", False
+            return
         try:
             lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                            options={"SymmetricMode": True})
@@ -125,11 +133,58 @@ class Factor:
         return x
 
     def _solve(self, b: np.ndarray) -> np.ndarray:
+        if self.kind == "cholmod":
+            return cholmod_solve(self._chol, b)
         if self.kind == "cholesky":
             return sla.cho_solve(self._cho, b, check_finite=False)
         if self.kind == "lu":
             return sla.lu_solve(self._lu, b, check_finite=False)
         return self._splu.solve(b)
+
+
+def _cholmod():
+    try:
+        import cvxopt
+        import cvxopt.cholmod
+    except ImportError:  # scipy only: SuperLU in symmetric mode
+        return None
+    return cvxopt
+
+
+def cholmod_factor(factor: Factor, A) -> bool:
+    """Factor ``A`` (CSC, symmetric) by CHOLMOD (through cvxopt) into ``factor``; False when
+    CHOLMOD is not installed or ``A`` is not positive definite (then SuperLU takes over).
+
+    Each factorisation runs CHOLMOD's symbolic analysis (fill-reducing ordering,
+    supernodes) and its numeric Cholesky; cvxopt's factor object holds both, so a kept
+    factorisation owns its own.
+    """
+    cvxopt = _cholmod()
+    if cvxopt is None:
+        return False
+    lower = sp.tril(A, format="csc")
+    lower.sort_indices()
+    cols = np.repeat(np.arange(lower.shape[1]), np.diff(lower.indptr))
+    C = cvxopt.spmatrix(cvxopt.matrix(lower.data), cvxopt.matrix(lower.indices.astype(np.int64)),
+                        cvxopt.matrix(cols.astype(np.int64)), lower.shape)
+    F = cvxopt.cholmod.symbolic(C, uplo="L")
+    try:
+        cvxopt.cholmod.numeric(C, F)
+    except ArithmeticError:  # not positive definite
+        return False
+    factor._chol = F
+    factor.kind, factor.definite, factor.n_negative = "cholmod", True, 0
+    return True
+
+
+def cholmod_solve(F, b: np.ndarray) -> np.ndarray:
+    """``A^-1 b`` with CHOLMOD's factors (``b`` of shape (n,) or (n, k))."""
+    import cvxopt
+    import cvxopt.cholmod
+
+    B = cvxopt.matrix(np.asfortranarray(b, dtype=float).reshape(b.shape[0], -1))
+    cvxopt.cholmod.solve(F, B)
+    return np.array(B).reshape(b.shape)
 
 
 def pcg(A, b: np.ndarray, precond: Factor, rtol: float, max_iter: int) -> tuple[np.ndarray | None, int]:
@@ -187,8 +242,6 @@ class StageSolver:
     round-off floor of the tolerance).
     """
 
-    #: modified Newton steps continue while the residual shrinks at least this much per iteration
-    contraction: float = 0.1
     #: CG stops at this relative residual (an inexact Newton step)
     cg_rtol: float = 1e-3
     #: CG gives up (and the matrix is factored afresh) after as many iterations as half a
@@ -205,7 +258,8 @@ class StageSolver:
         n_free = int(np.count_nonzero(self.free))
         self.reuse = policy == "reuse" or (policy == "auto" and n_free > DENSE_MAX)
         self.factor: Factor | None = None
-        self.modified_ok = False  # the last iteration contracted well enough for a modified step
+        self.rho = np.inf  # contraction of the last modified (or freshly factored) Newton step
+        self.cg_ok = True  # the last CG attempt with the kept factors converged
         self.row_sum = 0.0
         self.last = ""  # how the last direction was found: "modified", "cg" or "factor"
         self.mu = 4.0  # four times the next shift to try when A is indefinite
@@ -236,26 +290,45 @@ class StageSolver:
         du[self.free] = du_free
         return du
 
-    def direction(self, point, r: np.ndarray, exact: bool = False) -> np.ndarray:
+    def direction(self, point, r: np.ndarray, exact: bool = False, decades: float = 10.0,
+                  definite_only: bool = False) -> np.ndarray | None:
         """The Newton direction for residual ``r`` (flat, all dofs) at ``point``.
 
-        ``exact``: no modified Newton step (the current Jacobian is used).
+        ``exact``: no modified Newton step (the current Jacobian is used). ``decades``: how
+        many powers of ten the residual must still fall (for the cost model below).
+        ``definite_only``: return None, instead of an indefinite factorisation's direction,
+        when CHOLMOD finds ``A`` not positive definite (the caller shifts ``A``).
+
+        With kept factors, a modified Newton step is taken when the predicted cost of the
+        remaining modified steps (``decades / log10(1 / rho)`` solves at the last measured
+        contraction ``rho``) is below that of a fresh factorisation plus three solves (both
+        timed on this machine); else conjugate gradients on the current matrix
+        preconditioned by the kept factors (while CG keeps succeeding); else a fresh
+        factorisation.
         """
         c = self.system.counters
         b = self.rhs(r)
         c.n_solve += 1
-        if self.reuse and self.factor is not None and self.modified_ok and not exact:
-            self.last = "modified"
-            return self.expand(self.factor.solve(b), r)
+        f = self.factor
+        if self.reuse and f is not None and not exact and 0.0 < self.rho < 1.0:
+            # a modified step costs its solve plus about as much for the residual and line search
+            modified_cost = decades / np.log10(1.0 / self.rho) * 2.0 * f.solve_seconds
+            if modified_cost <= f.seconds + 3.0 * f.solve_seconds:
+                self.last = "modified"
+                return self.expand(f.solve(b), r)
         A = self._assemble(point, r)
-        if self.reuse and self.factor is not None and self.factor.definite:
-            x, its = pcg(A, b, self.factor, self.cg_rtol if not exact else 1e-12, self.cg_max_iter())
+        if self.reuse and f is not None and f.definite and (self.cg_ok or exact):
+            x, its = pcg(A, b, f, self.cg_rtol if not exact else 1e-12, self.cg_max_iter())
             c.n_lin_iter += its
+            self.cg_ok = x is not None
             if x is not None:
                 self.last = "cg"
                 return self.expand(x, r)
-        self.factor = Factor(A, c)
+        self.factor = Factor(A, c, definite_only)
+        self.cg_ok = True
         self.last = "factor"
+        if self.factor.kind == "none":
+            return None
         return self.expand(self.factor.solve(b), r)
 
     def shifted_direction(self, r: np.ndarray) -> np.ndarray:
@@ -263,28 +336,28 @@ class StageSolver:
 
         ``mu`` starts from a quarter of the last shift that worked (1 the first time) and is
         multiplied by 4 until the shifted matrix is positive definite; each try is one counted
-        factorisation.
+        factorisation (by CHOLMOD when installed: an indefinite ``A`` costs no SuperLU then).
         """
         A = self.factor.A
         M = sp.diags(self.mass_dofs[self.free]).tocsc()
         mu = self.mu / 4.0
         for _ in range(40):
-            shifted = Factor((A + mu * M).tocsc(), self.system.counters)
+            shifted = Factor((A + mu * M).tocsc(), self.system.counters, definite_only=True)
             if shifted.definite:
                 self.factor, self.mu = shifted, mu  # a definite preconditioner for later CG
-                self.modified_ok = False
+                self.rho = np.inf
                 return self.expand(shifted.solve(self.rhs(r)), r)
             mu *= 4.0
         raise ArithmeticError("no positive definite shift of the Newton matrix found")
 
     def contracted(self, ratio: float) -> None:
-        """Record the residual ratio ``|r_new| / |r_old|`` of the last iteration.
+        """Record the residual ratio ``|r_new| / |r_old|`` of the last full step (inf: damped).
 
-        Modified Newton steps go on while they (or the fresh factorisation they reuse)
-        contract the residual by :attr:`contraction`; after a CG step the Jacobian has moved
-        away from the kept factors, so the next step is a CG step again.
+        The contraction ``rho`` of a modified step (or of the fresh factorisation it would
+        reuse) predicts the next modified steps; a CG step leaves it as it was.
         """
-        self.modified_ok = self.last in ("modified", "factor") and ratio <= self.contraction
+        if self.last in ("modified", "factor"):
+            self.rho = ratio
 
 
 _CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()

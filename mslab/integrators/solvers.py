@@ -164,6 +164,7 @@ def newton_stage(system, xh: np.ndarray, vh: np.ndarray, c: float, tol: float, m
         max_iter *= 2
     if var:  # the line search makes progress every iteration; buckling springs need tens of them
         max_iter *= 4
+    solver.rho = np.inf  # a new stage: the last contraction says nothing about modified steps here
     V = vh.copy()
     r, point = residual(V)
     value = phi(V) if var and not linearised else 0.0
@@ -176,7 +177,12 @@ def newton_stage(system, xh: np.ndarray, vh: np.ndarray, c: float, tol: float, m
         if rnorm <= max(tol, floor):
             counters.n_iter += it - 1
             return point
-        du = solver.direction(point, r.ravel(), exact=linearised).reshape(V.shape)
+        decades = float(np.log10(rnorm / max(tol, floor))) + 1.0
+        du = solver.direction(point, r.ravel(), exact=linearised, decades=decades,
+                                definite_only=var and not linearised)
+        if du is None:  # CHOLMOD: A is not positive definite
+            du = solver.shifted_direction(r.ravel())
+        du = du.reshape(V.shape)
         X = point[0]
         floor = 8.0 * np.finfo(float).eps * solver.row_sum / c * _scale(X) if solver.row_sum > 0 else 0.0
         if linearised:
@@ -186,7 +192,9 @@ def newton_stage(system, xh: np.ndarray, vh: np.ndarray, c: float, tol: float, m
             grad = -solver.rhs(r.ravel())
             slope = float(grad @ du.ravel()[solver.free])
             if not slope < 0.0 and solver.last == "modified":
-                du = solver.direction(point, r.ravel(), exact=True).reshape(V.shape)
+                du = solver.direction(point, r.ravel(), exact=True, definite_only=True)
+                du = solver.shifted_direction(r.ravel()) if du is None else du
+                du = du.reshape(V.shape)
                 slope = float(grad @ du.ravel()[solver.free])
             if not slope < 0.0:  # indefinite Newton matrix: its direction climbs the objective
                 du = solver.shifted_direction(r.ravel()).reshape(V.shape)
