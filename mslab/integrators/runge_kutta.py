@@ -175,7 +175,8 @@ class ImplicitRK(_RungeKutta):
 
     Cost per step: Newton — per iteration one force evaluation, one Jacobian and one linear
     solve per stage, plus the evaluations of the residual; fixed point — ``s`` evaluations
-    per iteration. Counted in ``n_force, n_jac, n_solve, n_iter``.
+    per iteration. Counted in ``n_force, n_jac, n_solve, n_iter``, and ``n_factor``,
+    ``n_lin_iter`` (factorisations kept and reused, conjugate gradient iterations).
 
     Parameters
     ----------
