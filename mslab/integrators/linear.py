@@ -8,7 +8,7 @@ freedom (pinned particles keep ``V = v^``: their residual is zero from the start
 
 symmetric whenever ``K = df/dx`` and ``D = df/dv`` are (springs, gravity, drag, anchors: all of
 mslab's conservative and Rayleigh terms). ``A`` is the Hessian of the implicit Euler objective
-(:func:`objective`), so it is positive definite near a stable step and the step is a
+(:func:`mslab.integrators.solvers.objective`), so it is positive definite near a stable step and the step is a
 minimisation.
 
 **Factorisation** (:class:`Factor`). Up to :data:`DENSE_MAX` unknowns dense LAPACK
@@ -260,6 +260,7 @@ class StageSolver:
         self.factor: Factor | None = None
         self.rho = np.inf  # contraction of the last modified (or freshly factored) Newton step
         self.cg_ok = True  # the last CG attempt with the kept factors converged
+        self.stage = 0  # counts the stages solved (see start_stage)
         self.row_sum = 0.0
         self.last = ""  # how the last direction was found: "modified", "cg" or "factor"
         self.mu = 4.0  # four times the next shift to try when A is indefinite
@@ -317,7 +318,9 @@ class StageSolver:
                 self.last = "modified"
                 return self.expand(f.solve(b), r)
         A = self._assemble(point, r)
-        if self.reuse and f is not None and f.definite and (self.cg_ok or exact):
+        # CG with factors from this stage, or from earlier steps while that keeps working
+        fresh = getattr(f, "stage", None) == self.stage
+        if self.reuse and f is not None and f.definite and (fresh or self.cg_ok or exact):
             x, its = pcg(A, b, f, self.cg_rtol if not exact else 1e-12, self.cg_max_iter())
             c.n_lin_iter += its
             self.cg_ok = x is not None
@@ -325,7 +328,7 @@ class StageSolver:
                 self.last = "cg"
                 return self.expand(x, r)
         self.factor = Factor(A, c, definite_only)
-        self.cg_ok = True
+        self.factor.stage = self.stage
         self.last = "factor"
         if self.factor.kind == "none":
             return None
@@ -344,11 +347,17 @@ class StageSolver:
         for _ in range(40):
             shifted = Factor((A + mu * M).tocsc(), self.system.counters, definite_only=True)
             if shifted.definite:
+                shifted.stage = self.stage
                 self.factor, self.mu = shifted, mu  # a definite preconditioner for later CG
                 self.rho = np.inf
                 return self.expand(shifted.solve(self.rhs(r)), r)
             mu *= 4.0
         raise ArithmeticError("no positive definite shift of the Newton matrix found")
+
+    def start_stage(self) -> None:
+        """A new stage equation: the last contraction says nothing about modified steps here."""
+        self.stage += 1
+        self.rho = np.inf
 
     def contracted(self, ratio: float) -> None:
         """Record the residual ratio ``|r_new| / |r_old|`` of the last full step (inf: damped).
@@ -372,28 +381,3 @@ def stage_solver(system, c: float, policy: str = "auto") -> StageSolver:
             per_system.clear()
         per_system[key] = StageSolver(system, c, policy)
     return per_system[key]
-
-
-def variational(system) -> bool:
-    """The forces derive from the objective :func:`objective`: conservative position-only
-    effects plus linear drag (``f = -gamma v``, ``D`` constant and symmetric)."""
-    for e in system.effects:
-        if e.name == "damping":
-            continue
-        if e.velocity_dependent or e.dissipative or not e.conservative:
-            return False
-    return True
-
-
-def objective(system, xh: np.ndarray, vh: np.ndarray, c: float, V: np.ndarray) -> float:
-    """Implicit Euler's objective of one stage, whose gradient is ``M r``::
-
-        Phi(V) = 1/2 (V - v^)^T M (V - v^) + U(x^ + c V) + c/2 gamma |V|^2
-
-    (kinetic term over free particles; ``U`` the potential energy, the drag term the
-    Rayleigh function of linear drag). The stage solution minimises it.
-    """
-    dv = V - vh
-    kin = 0.5 * float(np.sum(system.mass[~system.pinned, None] * dv[~system.pinned] ** 2))
-    drag = sum(0.5 * c * e.power(xh, V) for e in system.effects if e.name == "damping")
-    return kin + system.potential_energy(xh + c * V) + drag

@@ -138,7 +138,7 @@ def newton_stage(system, xh: np.ndarray, vh: np.ndarray, c: float, tol: float, m
 
     Directions from :class:`mslab.integrators.linear.StageSolver` (symmetric free-dof matrix,
     factorisations kept and reused under ``policy``). Globalisation: when the forces derive
-    from implicit Euler's objective (:func:`mslab.integrators.linear.objective`; springs,
+    from implicit Euler's objective (:func:`objective`; springs,
     gravity, anchors, linear drag) a backtracking (Armijo) line search on that objective,
     with a shifted positive definite matrix when the Newton direction does not descend;
     otherwise full steps for ``full_steps`` iterations, then backtracking on the residual.
@@ -150,7 +150,7 @@ def newton_stage(system, xh: np.ndarray, vh: np.ndarray, c: float, tol: float, m
 
     counters = system.counters
     solver = linear.stage_solver(system, c, policy)
-    var = linear.variational(system)
+    var = variational(system)
 
     def residual(V):
         X = xh + c * V
@@ -158,13 +158,13 @@ def newton_stage(system, xh: np.ndarray, vh: np.ndarray, c: float, tol: float, m
         return V - vh - c * a, (X, V, a, p)
 
     def phi(V):
-        return linear.objective(system, xh, vh, c, V)
+        return objective(system, xh, vh, c, V)
 
     if solver.reuse:  # modified Newton converges linearly: allow it more (cheap) iterations
         max_iter *= 2
     if var:  # the line search makes progress every iteration; buckling springs need tens of them
         max_iter *= 4
-    solver.rho = np.inf  # a new stage: the last contraction says nothing about modified steps here
+    solver.start_stage()
     V = vh.copy()
     r, point = residual(V)
     value = phi(V) if var and not linearised else 0.0
@@ -274,6 +274,31 @@ def _newton_coupled(method, system, state, dt: float):
     U0 = np.tile(state.v.ravel(), s)
     _, (X, V, a, p) = _newton(system, U0, residual, solve, tol, method.max_iter, full_steps=4)
     return list(V), list(a), p
+
+
+def variational(system) -> bool:
+    """The forces derive from the objective :func:`objective`: conservative position-only
+    effects plus linear drag (``f = -gamma v``, ``D`` constant and symmetric)."""
+    for e in system.effects:
+        if e.name == "damping":
+            continue
+        if e.velocity_dependent or e.dissipative or not e.conservative:
+            return False
+    return True
+
+
+def objective(system, xh: np.ndarray, vh: np.ndarray, c: float, V: np.ndarray) -> float:
+    """Implicit Euler's objective of one stage, whose gradient is ``M r``::
+
+        Phi(V) = 1/2 (V - v^)^T M (V - v^) + U(x^ + c V) + c/2 gamma |V|^2
+
+    (kinetic term over free particles; ``U`` the potential energy, the drag term the
+    Rayleigh function of linear drag). The stage solution minimises it.
+    """
+    dv = V - vh
+    kin = 0.5 * float(np.sum(system.mass[~system.pinned, None] * dv[~system.pinned] ** 2))
+    drag = sum(0.5 * c * e.power(xh, V) for e in system.effects if e.name == "damping")
+    return kin + system.potential_energy(xh + c * V) + drag
 
 
 def fixed_point_stages(method, system, state, dt: float):
