@@ -61,6 +61,9 @@ def test_force_evaluations_are_counted_per_stage(method):
         assert s.n_jac == s.n_solve == s.n_iter == 0
     elif method == "implicit_euler_fp":
         assert s.n_force == s.n_iter and s.n_iter >= s.steps
+    elif integ.family == "local_global":  # no Newton: a fixed number of sweeps, one factorisation per dt
+        assert s.n_force == s.n_solve == s.n_iter == integ.iterations * s.steps
+        assert s.n_jac == 0 and s.n_factor == 1
     elif integ.diagonally_implicit:  # Newton per stage: one evaluation per iteration + the converged check
         assert s.n_force == s.n_iter + integ.n_stages * s.steps
         implicit_stages = int(np.count_nonzero(np.diag(integ.A)))  # an explicit first stage solves nothing

@@ -20,7 +20,8 @@ from mslab.integrators.runge_kutta import ExplicitRK, ImplicitRK
 from mslab.integrators.splitting import Splitting
 from mslab.integrators.two_step import Leapfrog, Verlet
 
-_FRAMEWORK = {"base", "coefficients", "runge_kutta", "solvers", "splitting", "two_step"}
+_FRAMEWORK = {"base", "coefficients", "linear", "local_global", "local_step", "runge_kutta", "solvers",
+              "splitting", "two_step"}
 
 
 def discover() -> list[str]:

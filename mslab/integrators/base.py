@@ -30,7 +30,7 @@ COURSE_METHODS = ("euler", "symplectic_euler", "symplectic_euler_x", "heun", "mi
                   "verlet", "leapfrog", "implicit_euler", "implicit_euler_fp")
 
 #: The families, each one class in mslab/integrators/.
-FAMILIES = ("explicit_rk", "implicit_rk", "splitting", "two_step", "staggered")
+FAMILIES = ("explicit_rk", "implicit_rk", "splitting", "two_step", "staggered", "local_global")
 
 
 class Integrator:

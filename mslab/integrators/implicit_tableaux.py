@@ -1,5 +1,6 @@
 """The implicit Runge-Kutta methods: implicit Euler (Newton and fixed point), implicit
-midpoint, and beyond the course SDIRK2, Gauss (2 stages) and Radau IIA (2 stages)."""
+midpoint, and beyond the course Baraff-Witkin's linearised implicit Euler, SDIRK2, Gauss
+(2 stages) and Radau IIA (2 stages)."""
 
 from fractions import Fraction as Fr
 from math import sqrt
@@ -39,6 +40,21 @@ implicit_euler_fp = register(ImplicitRK(
 
     Order 1; one force evaluation per iteration; same ``R(z) = 1/(1 - z)`` as Newton
     when it converges.
+    """))
+
+baraff_witkin = register(ImplicitRK(
+    [[1]], [1], name="baraff_witkin", order=1, solver="linearised",
+    doc="""Baraff and Witkin's linearised implicit Euler: one Newton step per time step (beyond the course).
+
+    ``(M - h^2 K - h D) dv = h (f(x_n, v_n) + h K v_n)``,  ``v_{n+1} = v_n + dv``,
+    ``x_{n+1} = x_n + h v_{n+1}`` (``K, D`` the Jacobians at ``(x_n, v_n)``): the first Newton
+    iteration of implicit Euler (``implicit_euler``, seed eq. 27) from ``v = v_n``, without
+    the further iterations and without a convergence test. Exact implicit Euler on linear
+    forces (same ``R(z) = 1/(1 - z)``, A-stable); on springs that rotate it deviates from
+    implicit Euler by ``O(h^2)`` per step, so it is still first order, and its cost is fixed:
+    one Jacobian, one linear solve, two force evaluations per step. The classical cloth
+    method. Reference: D. Baraff, A. Witkin, "Large Steps in Cloth Simulation",
+    SIGGRAPH 1998.
     """))
 
 implicit_midpoint = register(ImplicitRK(

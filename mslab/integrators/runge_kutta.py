@@ -166,11 +166,17 @@ class ImplicitRK(_RungeKutta):
     effects' Jacobians (:func:`mslab.integrators.solvers.newton_stages`): stage by stage
     when ``A`` is lower triangular (DIRK), all stages at once otherwise.
     ``solver="fixed_point"`` iterates ``Y <- y_n + h A F(Y)``, which needs only force
-    evaluations but converges only while ``h L |A| < 1``.
+    evaluations but converges only while ``h L |A| < 1``. ``solver="linearised"`` takes one
+    Newton step per stage from ``V = v^`` and stops there (Baraff and Witkin's linearised
+    implicit Euler): exact on linear forces, an ``O(h^2)`` local deviation otherwise.
+    ``linear_solver`` chooses how Newton's linear systems are solved
+    (:mod:`mslab.integrators.linear`): ``"auto"`` keeps and reuses factorisations above
+    300 unknowns, ``"reuse"`` always, ``"fresh"`` factors every Newton matrix.
 
     Cost per step: Newton — per iteration one force evaluation, one Jacobian and one linear
     solve per stage, plus the evaluations of the residual; fixed point — ``s`` evaluations
-    per iteration. Counted in ``n_force, n_jac, n_solve, n_iter``.
+    per iteration. Counted in ``n_force, n_jac, n_solve, n_iter``, and ``n_factor``,
+    ``n_lin_iter`` (factorisations kept and reused, conjugate gradient iterations).
 
     Parameters
     ----------
@@ -178,7 +184,8 @@ class ImplicitRK(_RungeKutta):
     b, c : array_like, shape (s,)
     name : str
     order : int
-    solver : {"newton", "fixed_point"}
+    solver : {"newton", "fixed_point", "linearised"}
+    linear_solver : {"auto", "fresh", "reuse"}
     a_stable : bool, optional
         Declared A-stability (tested against ``R(z)``); default: measured on a grid.
     doc : str, optional
@@ -190,16 +197,25 @@ class ImplicitRK(_RungeKutta):
     max_iter: int = 25
 
     def __init__(self, A, b, c=None, name: str = "implicit_rk", order: int = 0, solver: str = "newton",
-                 symplectic: bool = False, doc: str | None = None):
+                 symplectic: bool = False, doc: str | None = None, linear_solver: str = "auto"):
         super().__init__(A, b, c, name, order, doc)
-        if solver not in ("newton", "fixed_point"):
-            raise ValueError(f"solver must be 'newton' or 'fixed_point', got {solver!r}")
+        if solver not in ("newton", "fixed_point", "linearised"):
+            raise ValueError(f"solver must be 'newton', 'fixed_point' or 'linearised', got {solver!r}")
+        from mslab.integrators.linear import POLICIES
+
+        if linear_solver not in POLICIES:
+            raise ValueError(f"linear_solver must be one of {POLICIES}, got {linear_solver!r}")
         self.solver = solver
+        self.linear_solver = linear_solver
+        self.linearised = solver == "linearised"
         self.symplectic = symplectic
         self.diagonally_implicit = not np.any(np.triu(self.A, 1))
+        if self.linearised and not self.diagonally_implicit:
+            raise ValueError("solver 'linearised' (one Newton step per stage) needs a diagonally "
+                             "implicit tableau")
         if solver == "fixed_point":
             self.max_iter = 200
-        self.a_stable = solver == "newton" and self._a_stable()
+        self.a_stable = solver != "fixed_point" and self._a_stable()
 
     def _a_stable(self) -> bool:
         """``|R(iy)| <= 1`` on the imaginary axis, no pole in the left half plane, ``|R(-inf)| <= 1``."""

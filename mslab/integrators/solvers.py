@@ -4,19 +4,24 @@ Both find the stage velocities ``V_i`` of ``X_i = x_n + h sum_j A_ij V_j``,
 ``V_i = v_n + h sum_j A_ij a(X_j, V_j)`` (see :class:`~mslab.integrators.ImplicitRK`).
 
 * **Newton** linearises the forces with the effects' Jacobians ``K = df/dx``,
-  ``D = df/dv``. A diagonally implicit tableau is solved stage by stage: stage ``i``
-  solves ``g(V) = V - v^ - h g_i a(x^ + h g_i V, V) = 0`` (``g_i = A_ii``; ``x^, v^``
-  collect the earlier stages) with the matrix ``I - h g_i M^-1 (h g_i K + D)``. A full
-  tableau couples all stages in one system with blocks
-  ``delta_ik I - h sum_j A_ij M^-1 (h K_j A_jk + D_j delta_jk)``. Full Newton steps first
-  (stiff springs need them); after ``full_steps`` iterations a backtracking line search
-  halves the step until the residual falls (a contact switching on and off makes the
-  iterates cycle otherwise).
+  ``D = df/dv``. A diagonally implicit tableau is solved stage by stage
+  (:func:`newton_stage`): stage ``i`` solves ``g(V) = V - v^ - h g_i a(x^ + h g_i V, V) = 0``
+  (``g_i = A_ii``; ``x^, v^`` collect the earlier stages) with the matrix
+  ``I - h g_i M^-1 (h g_i K + D)``, solved in its symmetric mass-scaled form on the free
+  dofs with kept factorisations (:mod:`mslab.integrators.linear`). When the forces derive
+  from implicit Euler's objective, a line search on that objective globalises Newton (an
+  undamped cloth at dt = 1/30 converges); otherwise full Newton steps first (stiff springs
+  need them), then after ``full_steps`` iterations a backtracking line search halves the
+  step until the residual falls (a contact switching on and off makes the iterates cycle
+  otherwise). A full tableau couples all stages in one system with blocks
+  ``delta_ik I - h sum_j A_ij M^-1 (h K_j A_jk + D_j delta_jk)``, factored afresh per
+  iteration (dense LAPACK, or SuperLU above ``DENSE_MAX`` unknowns).
 * **Fixed point** iterates ``Y <- y_n + h A F(Y)`` from ``Y = y_n``; a contraction only
   while ``h L |A| < 1``. Growing iterates stop the step with a message naming Newton.
 
 Counted: ``n_force`` (every residual), ``n_jac`` (every Jacobian), ``n_solve`` (every
-linear solve), ``n_iter`` (every iteration).
+Newton direction), ``n_factor`` (every factorisation), ``n_lin_iter`` (every conjugate
+gradient iteration), ``n_iter`` (every iteration).
 """
 
 from __future__ import annotations
@@ -118,27 +123,116 @@ def _newton_dirk(method, system, state, dt: float):
             accs.append(a)
             powers.append(p)
             continue
-
-        def residual(V, xh=xh, vh=vh, g=g):
-            X = xh + (dt * g) * V
-            a, p = system.rhs(X, V)
-            return V - vh - (dt * g) * a, (X, V, a, p)
-
-        def solve(point, r, g=g):
-            X, V, _, _ = point
-            K, D = system.jacobians(X, V)
-            lin = K * (dt * g) if D is None else K * (dt * g) + D
-            S = _scaled(system, lin, dt * g)
-            du, row_sum = _linear_solve(S, r.ravel())
-            # round-off floor: stiff springs amplify the rounding of positions by row_sum
-            floor = 8.0 * np.finfo(float).eps * row_sum / (dt * g) * _scale(X) if row_sum > 0 else 0.0
-            return du.reshape(r.shape), floor
-
-        V, (X, V, a, p) = _newton(system, vh.copy(), residual, solve, tol0, method.max_iter, full_steps=4)
+        X, V, a, p = newton_stage(system, xh, vh, dt * g, tol0, method.max_iter,
+                                  policy=getattr(method, "linear_solver", "auto"),
+                                  linearised=getattr(method, "linearised", False))
         vs.append(V)
         accs.append(a)
         powers.append(p)
     return vs, accs, powers
+
+
+def newton_stage(system, xh: np.ndarray, vh: np.ndarray, c: float, tol: float, max_iter: int,
+                 policy: str = "auto", linearised: bool = False, full_steps: int = 4):
+    """Solve one implicit Euler-like stage ``V - v^ - c a(x^ + c V, V) = 0`` by Newton's method.
+
+    Directions from :class:`mslab.integrators.linear.StageSolver` (symmetric free-dof matrix,
+    factorisations kept and reused under ``policy``). Globalisation: when the forces derive
+    from implicit Euler's objective (:func:`objective`; springs,
+    gravity, anchors, linear drag) a backtracking (Armijo) line search on that objective,
+    with a shifted positive definite matrix when the Newton direction does not descend;
+    otherwise full steps for ``full_steps`` iterations, then backtracking on the residual.
+    ``linearised``: one Newton step from ``V = v^`` and no convergence test (Baraff-Witkin).
+
+    Returns ``(X, V, a, power)`` at the solution; raises StepFailure saying why it failed.
+    """
+    from mslab.integrators import linear
+
+    counters = system.counters
+    solver = linear.stage_solver(system, c, policy)
+    var = variational(system)
+
+    def residual(V):
+        X = xh + c * V
+        a, p = system.rhs(X, V)
+        return V - vh - c * a, (X, V, a, p)
+
+    def phi(V):
+        return objective(system, xh, vh, c, V)
+
+    if solver.reuse:  # modified Newton converges linearly: allow it more (cheap) iterations
+        max_iter *= 2
+    if var:  # the line search makes progress every iteration; buckling springs need tens of them
+        max_iter *= 4
+    solver.start_stage()
+    V = vh.copy()
+    r, point = residual(V)
+    value = phi(V) if var and not linearised else 0.0
+    floor, why = 0.0, ""
+    for it in range(1, max_iter + 1):
+        rnorm = float(np.max(np.abs(r))) if r.size else 0.0
+        if not np.isfinite(rnorm):
+            why = "the residual became non-finite"
+            break
+        if rnorm <= max(tol, floor):
+            counters.n_iter += it - 1
+            return point
+        decades = float(np.log10(rnorm / max(tol, floor))) + 1.0
+        du = solver.direction(point, r.ravel(), exact=linearised, decades=decades,
+                                definite_only=var and not linearised)
+        if du is None:  # CHOLMOD: A is not positive definite
+            du = solver.shifted_direction(r.ravel())
+        du = du.reshape(V.shape)
+        X = point[0]
+        floor = 8.0 * np.finfo(float).eps * solver.row_sum / c * _scale(X) if solver.row_sum > 0 else 0.0
+        if linearised:
+            counters.n_iter += 1
+            return residual(V + du)[1]
+        if var:
+            grad = -solver.rhs(r.ravel())
+            slope = float(grad @ du.ravel()[solver.free])
+            if not slope < 0.0 and solver.last == "modified":
+                du = solver.direction(point, r.ravel(), exact=True, definite_only=True)
+                du = solver.shifted_direction(r.ravel()) if du is None else du
+                du = du.reshape(V.shape)
+                slope = float(grad @ du.ravel()[solver.free])
+            if not slope < 0.0:  # indefinite Newton matrix: its direction climbs the objective
+                du = solver.shifted_direction(r.ravel()).reshape(V.shape)
+                slope = float(grad @ du.ravel()[solver.free])
+            alpha = 1.0
+            while True:
+                trial, trial_point = residual(V + alpha * du)
+                trial_value = phi(V + alpha * du)
+                tnorm = float(np.max(np.abs(trial)))
+                armijo = trial_value <= value + 1e-4 * alpha * slope
+                # near the solution Phi's change drowns in round-off: the residual decides there
+                flat = abs(trial_value - value) <= 1e-12 * (abs(value) + 1.0) and tnorm <= 0.5 * rnorm
+                if np.isfinite(tnorm) and (armijo or flat):
+                    break
+                alpha *= 0.5
+                if alpha < 1e-10:
+                    counters.n_iter += it
+                    raise StepFailure(
+                        f"Newton's line search found no decrease of implicit Euler's objective at iteration "
+                        f"{it} (residual {rnorm:.2e}, tolerance {max(tol, floor):.2e}); try a smaller dt")
+            value = trial_value
+        else:
+            alpha = 1.0
+            norm = float(np.linalg.norm(r))
+            while True:
+                trial, trial_point = residual(V + alpha * du)
+                if (it <= full_steps or alpha <= 1.0 / 64 or not np.isfinite(norm)
+                        or float(np.linalg.norm(trial)) < norm):
+                    break
+                alpha *= 0.5
+            tnorm = float(np.max(np.abs(trial)))
+        solver.contracted(tnorm / rnorm if alpha == 1.0 and rnorm > 0 else np.inf)
+        V = V + alpha * du
+        r, point = trial, trial_point
+        why = f"the residual is still {tnorm:.2e}"
+    counters.n_iter += it
+    raise StepFailure(f"Newton iteration did not converge in {max_iter} iterations: {why} "
+                      f"(tolerance {max(tol, floor):.2e}); try a smaller dt")
 
 
 def _newton_coupled(method, system, state, dt: float):
@@ -173,12 +267,38 @@ def _newton_coupled(method, system, state, dt: float):
         S = dt * dt * (Ak @ sp.block_diag(blocks_K, format="csr") @ Ak) \
             + dt * (Ak @ sp.block_diag(blocks_D, format="csr"))
         du, row_sum = _linear_solve(S, r)
+        system.counters.n_factor += 1
         floor = 8.0 * np.finfo(float).eps * row_sum / dt * _scale(X) if row_sum > 0 else 0.0
         return du, floor
 
     U0 = np.tile(state.v.ravel(), s)
     _, (X, V, a, p) = _newton(system, U0, residual, solve, tol, method.max_iter, full_steps=4)
     return list(V), list(a), p
+
+
+def variational(system) -> bool:
+    """The forces derive from the objective :func:`objective`: conservative position-only
+    effects plus linear drag (``f = -gamma v``, ``D`` constant and symmetric)."""
+    for e in system.effects:
+        if e.name == "damping":
+            continue
+        if e.velocity_dependent or e.dissipative or not e.conservative:
+            return False
+    return True
+
+
+def objective(system, xh: np.ndarray, vh: np.ndarray, c: float, V: np.ndarray) -> float:
+    """Implicit Euler's objective of one stage, whose gradient is ``M r``::
+
+        Phi(V) = 1/2 (V - v^)^T M (V - v^) + U(x^ + c V) + c/2 gamma |V|^2
+
+    (kinetic term over free particles; ``U`` the potential energy, the drag term the
+    Rayleigh function of linear drag). The stage solution minimises it.
+    """
+    dv = V - vh
+    kin = 0.5 * float(np.sum(system.mass[~system.pinned, None] * dv[~system.pinned] ** 2))
+    drag = sum(0.5 * c * e.power(xh, V) for e in system.effects if e.name == "damping")
+    return kin + system.potential_energy(xh + c * V) + drag
 
 
 def fixed_point_stages(method, system, state, dt: float):

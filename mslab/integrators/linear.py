@@ -1,0 +1,383 @@
+"""The linear solvers of the implicit methods: symmetric Newton matrices, kept factorisations, counted.
+
+Newton's matrix of an implicit Euler-like stage ``V - v^ - c a(x^ + c V, V) = 0`` (``c = h g``)
+is ``I - c M^-1 (c K + D)``. Scaled by the masses and restricted to the free degrees of
+freedom (pinned particles keep ``V = v^``: their residual is zero from the start) it is::
+
+    A = M - c^2 K - c D        (free dofs only)
+
+symmetric whenever ``K = df/dx`` and ``D = df/dv`` are (springs, gravity, drag, anchors: all of
+mslab's conservative and Rayleigh terms). ``A`` is the Hessian of the implicit Euler objective
+(:func:`mslab.integrators.solvers.objective`), so it is positive definite near a stable step and the step is a
+minimisation.
+
+**Factorisation** (:class:`Factor`). Up to :data:`DENSE_MAX` unknowns dense LAPACK
+(Cholesky, else LU). Above, CHOLMOD's supernodal sparse Cholesky through cvxopt (a
+maintained binding with wheels; scikit-sparse has none for this Python here), about 10x
+faster than SuperLU on a 100 x 100 cloth's matrix; it fails on a matrix that is not
+positive definite. Then (or without cvxopt) SuperLU in *symmetric mode*: a minimum-degree
+ordering of ``A + A^T`` applied to rows and columns alike and no row pivoting
+(``diag_pivot_thresh = 0``). That is an ``L D L^T`` factorisation written as ``L U``: the
+signs of ``U``'s diagonal are the inertia of ``A`` (Sylvester's law), so the factorisation
+itself tells whether and how ``A`` is indefinite.
+
+**Fallback when A is not positive definite** (a compressed spring has negative stiffness
+across it; hard compression makes ``A`` indefinite). The symmetric-mode factors are used
+only when they solve ``A`` to 1e-8 (no pivoting can lose accuracy on an indefinite matrix);
+otherwise SuperLU with partial pivoting (COLAMD ordering), a plain LU. Clamping the
+compressed springs' stiffness would make every matrix definite, but was measured to break
+Newton's convergence at dt = 1/30 (issue 12): mslab keeps the exact Jacobian.
+
+**Reuse** (:class:`StageSolver`): a factorisation is kept between Newton iterations and
+steps. Each iteration takes (1) a *modified Newton* step with the kept factors (no
+Jacobian, one solve) when the contraction measured on the last such step predicts that the
+remaining modified steps cost less than a fresh factorisation (both timed as they run),
+else (2) an inexact Newton step by conjugate gradients on the current ``A`` preconditioned
+with the kept factors (the middle ground: one Jacobian, a few solves), else (3) a fresh
+factorisation when CG is slow, meets negative curvature, or no definite factors are kept.
+
+Counted on ``system.counters``: ``n_factor`` (every factorisation), ``n_solve`` (every
+Newton direction), ``n_lin_iter`` (every CG iteration), ``n_jac`` (every Jacobian).
+"""
+
+from __future__ import annotations
+
+import time
+import weakref
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+#: systems up to this many unknowns factor densely (LAPACK beats building scipy.sparse
+#: objects there)
+DENSE_MAX = 300
+
+#: reuse policies: "fresh" factors every Newton matrix (the textbook method), "reuse" keeps
+#: factorisations (see StageSolver), "auto" reuses above DENSE_MAX unknowns only
+POLICIES = ("auto", "fresh", "reuse")
+
+
+class Factor:
+    """A factorisation of one symmetric matrix ``A`` (scipy sparse, free dofs).
+
+    Attributes
+    ----------
+    A : sparse matrix, shape (n, n)
+        The factored matrix (kept for CG and for the accuracy check).
+    definite : bool
+        ``A`` is positive definite (all pivots of the symmetric factorisation > 0).
+    n_negative : int
+        Negative pivots: the number of negative eigenvalues of ``A`` (-1: not known).
+    kind : str
+        ``"cholesky"`` / ``"lu"`` (dense), ``"cholmod"``, ``"ldlt"`` (symmetric-mode SuperLU),
+        ``"lu_pivoted"``.
+    """
+
+    def __init__(self, A, counters, definite_only: bool = False):
+        start = time.perf_counter()
+        self._build(A, counters, definite_only)
+        self.seconds = time.perf_counter() - start  # wall time of the factorisation
+
+    def _build(self, A, counters, definite_only: bool) -> None:
+        counters.n_factor += 1
+        self.A = A
+        self.n_negative = -1
+        n = A.shape[0]
+        if n <= DENSE_MAX:
+            dense = A.toarray() if sp.issparse(A) else np.asarray(A)
+            try:
+                self._cho = sla.cho_factor(dense, lower=True, check_finite=False)
+                self.kind, self.definite, self.n_negative = "cholesky", True, 0
+            except sla.LinAlgError:
+                self._lu = sla.lu_factor(dense, check_finite=False)
+                self.kind, self.definite = "lu", False
+            return
+        A = A.tocsc()
+        self.A = A
+        if cholmod_factor(self, A):
+            return
+        if definite_only and _cholmod() is not None:  # the caller shifts A instead
+            self.kind, self.definite = "none", False
+            return
+        try:
+            lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                           options={"SymmetricMode": True})
+        except RuntimeError:  # an exactly zero pivot: singular without pivoting
+            lu = None
+        if lu is not None and np.array_equal(lu.perm_r, lu.perm_c):
+            pivots = lu.U.diagonal()
+            self.n_negative = int(np.count_nonzero(pivots < 0))
+            self.definite = self.n_negative == 0 and bool(np.all(np.isfinite(pivots)))
+            self._splu, self.kind = lu, "ldlt"
+            if self.definite or self._accurate():
+                return
+        counters.n_factor += 1
+        self._splu = spla.splu(A)  # partial pivoting: the fallback for indefinite matrices
+        self.kind, self.definite = "lu_pivoted", False
+
+    def _accurate(self) -> bool:
+        """The unpivoted factors solve ``A`` to a relative 1e-8 (checked on a random right side)."""
+        b = np.random.default_rng(0).standard_normal(self.A.shape[0])
+        x = self._splu.solve(b)
+        return bool(np.all(np.isfinite(x)) and np.linalg.norm(self.A @ x - b) <= 1e-8 * np.linalg.norm(b))
+
+    solve_seconds: float = 0.0  # wall time of the last solve
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        """``A^-1 b`` (timed)."""
+        start = time.perf_counter()
+        x = self._solve(b)
+        self.solve_seconds = time.perf_counter() - start
+        return x
+
+    def _solve(self, b: np.ndarray) -> np.ndarray:
+        if self.kind == "cholmod":
+            return cholmod_solve(self._chol, b)
+        if self.kind == "cholesky":
+            return sla.cho_solve(self._cho, b, check_finite=False)
+        if self.kind == "lu":
+            return sla.lu_solve(self._lu, b, check_finite=False)
+        return self._splu.solve(b)
+
+
+def _cholmod():
+    try:
+        import cvxopt
+        import cvxopt.cholmod
+    except ImportError:  # scipy only: SuperLU in symmetric mode
+        return None
+    return cvxopt
+
+
+def cholmod_factor(factor: Factor, A) -> bool:
+    """Factor ``A`` (CSC, symmetric) by CHOLMOD (through cvxopt) into ``factor``; False when
+    CHOLMOD is not installed or ``A`` is not positive definite (then SuperLU takes over).
+
+    Each factorisation runs CHOLMOD's symbolic analysis (fill-reducing ordering,
+    supernodes) and its numeric Cholesky; cvxopt's factor object holds both, so a kept
+    factorisation owns its own.
+    """
+    cvxopt = _cholmod()
+    if cvxopt is None:
+        return False
+    lower = sp.tril(A, format="csc")
+    lower.sort_indices()
+    cols = np.repeat(np.arange(lower.shape[1]), np.diff(lower.indptr))
+    C = cvxopt.spmatrix(cvxopt.matrix(lower.data), cvxopt.matrix(lower.indices.astype(np.int64)),
+                        cvxopt.matrix(cols.astype(np.int64)), lower.shape)
+    F = cvxopt.cholmod.symbolic(C, uplo="L")
+    try:
+        cvxopt.cholmod.numeric(C, F)
+    except ArithmeticError:  # not positive definite
+        return False
+    factor._chol = F
+    factor.kind, factor.definite, factor.n_negative = "cholmod", True, 0
+    return True
+
+
+def cholmod_solve(F, b: np.ndarray) -> np.ndarray:
+    """``A^-1 b`` with CHOLMOD's factors (``b`` of shape (n,) or (n, k))."""
+    import cvxopt
+    import cvxopt.cholmod
+
+    B = cvxopt.matrix(np.asfortranarray(b, dtype=float).reshape(b.shape[0], -1))
+    cvxopt.cholmod.solve(F, B)
+    return np.array(B).reshape(b.shape)
+
+
+def pcg(A, b: np.ndarray, precond: Factor, rtol: float, max_iter: int) -> tuple[np.ndarray | None, int]:
+    """Conjugate gradients on ``A x = b`` preconditioned by ``precond.solve``.
+
+    Returns ``(x, iterations)``; ``x`` is None when CG does not reach ``|r| <= rtol |b|`` in
+    ``max_iter`` iterations or meets a direction of non-positive curvature (``A`` not
+    positive definite).
+    """
+    x = np.zeros_like(b)
+    r = b.copy()
+    bnorm = float(np.linalg.norm(b))
+    if bnorm == 0.0:
+        return x, 0
+    z = precond.solve(r)
+    p = z.copy()
+    rz = float(r @ z)
+    for it in range(1, max_iter + 1):
+        Ap = A @ p
+        curvature = float(p @ Ap)
+        if not curvature > 0.0:
+            return None, it
+        alpha = rz / curvature
+        x += alpha * p
+        r -= alpha * Ap
+        if float(np.linalg.norm(r)) <= rtol * bnorm:
+            return x, it
+        z = precond.solve(r)
+        rz_new = float(r @ z)
+        p = z + (rz_new / rz) * p
+        rz = rz_new
+    return None, max_iter
+
+
+def newton_matrix(K, D, mass_dofs: np.ndarray, free: np.ndarray, c: float):
+    """``A = M - c^2 K - c D`` on the free dofs (CSC); ``D`` may be None."""
+    lin = K * (c * c) if D is None else K * (c * c) + D * c
+    lin = lin.tocsr()[free][:, free]
+    return (sp.diags(mass_dofs[free]) - lin).tocsc()
+
+
+class StageSolver:
+    """Newton directions for stages with coefficient ``c`` on one System, factorisations kept.
+
+    Parameters
+    ----------
+    system : System
+    c : float
+        ``h * A_ii``.
+    policy : {"auto", "fresh", "reuse"}
+
+    ``direction(point, r, jacobian)`` returns the Newton direction ``du`` (all dofs) for the
+    residual ``r`` at ``point = (X, V)``; the solver picks modified Newton, CG with the kept
+    factors, or a fresh factorisation (module docstring) and records ``row_sum`` (for the
+    round-off floor of the tolerance).
+    """
+
+    #: CG stops at this relative residual (an inexact Newton step)
+    cg_rtol: float = 1e-3
+    #: CG gives up (and the matrix is factored afresh) after as many iterations as half a
+    #: factorisation costs in solves (measured), within these bounds
+    cg_iter_bounds: tuple = (4, 60)
+
+    def __init__(self, system, c: float, policy: str = "auto"):
+        if policy not in POLICIES:
+            raise ValueError(f"linear solver policy must be one of {POLICIES}, got {policy!r}")
+        self.system = system
+        self.c = float(c)
+        self.free = np.repeat(~system.pinned, system.dim)
+        self.mass_dofs = np.repeat(system.mass, system.dim)
+        n_free = int(np.count_nonzero(self.free))
+        self.reuse = policy == "reuse" or (policy == "auto" and n_free > DENSE_MAX)
+        self.factor: Factor | None = None
+        self.rho = np.inf  # contraction of the last modified (or freshly factored) Newton step
+        self.cg_ok = True  # the last CG attempt with the kept factors converged
+        self.stage = 0  # counts the stages solved (see start_stage)
+        self.row_sum = 0.0
+        self.last = ""  # how the last direction was found: "modified", "cg" or "factor"
+        self.mu = 4.0  # four times the next shift to try when A is indefinite
+
+    def _assemble(self, point, r):
+        X, V = point[0], point[1]
+        K, D = self.system.jacobians(X, V)
+        lin = K * self.c if D is None else K * self.c + D
+        minv = np.repeat(self.system.inv_mass, self.system.dim)
+        row = np.asarray(abs(lin).sum(axis=1)).ravel() * minv * self.c
+        self.row_sum = float(row.max()) if row.size else 0.0
+        return newton_matrix(K, D, self.mass_dofs, self.free, self.c)
+
+    def cg_max_iter(self) -> int:
+        """CG iterations worth half a fresh factorisation (from the kept factors' measured times)."""
+        low, high = self.cg_iter_bounds
+        f = self.factor
+        if f.solve_seconds <= 0.0:
+            return low
+        return int(np.clip(0.5 * f.seconds / f.solve_seconds, low, high))
+
+    def rhs(self, r: np.ndarray) -> np.ndarray:
+        """``-M r`` on the free dofs (the negative gradient of the objective)."""
+        return -(self.mass_dofs[self.free] * r[self.free])
+
+    def expand(self, du_free: np.ndarray, r: np.ndarray) -> np.ndarray:
+        du = -r.astype(float, copy=True)  # pinned dofs: du = -r (zero: V = v^ there)
+        du[self.free] = du_free
+        return du
+
+    def direction(self, point, r: np.ndarray, exact: bool = False, decades: float = 10.0,
+                  definite_only: bool = False) -> np.ndarray | None:
+        """The Newton direction for residual ``r`` (flat, all dofs) at ``point``.
+
+        ``exact``: no modified Newton step (the current Jacobian is used). ``decades``: how
+        many powers of ten the residual must still fall (for the cost model below).
+        ``definite_only``: return None, instead of an indefinite factorisation's direction,
+        when CHOLMOD finds ``A`` not positive definite (the caller shifts ``A``).
+
+        With kept factors, a modified Newton step is taken when the predicted cost of the
+        remaining modified steps (``decades / log10(1 / rho)`` solves at the last measured
+        contraction ``rho``) is below that of a fresh factorisation plus three solves (both
+        timed on this machine); else conjugate gradients on the current matrix
+        preconditioned by the kept factors (while CG keeps succeeding); else a fresh
+        factorisation.
+        """
+        c = self.system.counters
+        b = self.rhs(r)
+        c.n_solve += 1
+        f = self.factor
+        if self.reuse and f is not None and not exact and 0.0 < self.rho < 1.0:
+            # a modified step costs its solve plus about as much for the residual and line search
+            modified_cost = decades / np.log10(1.0 / self.rho) * 2.0 * f.solve_seconds
+            if modified_cost <= f.seconds + 3.0 * f.solve_seconds:
+                self.last = "modified"
+                return self.expand(f.solve(b), r)
+        A = self._assemble(point, r)
+        # CG with factors from this stage, or from earlier steps while that keeps working
+        fresh = getattr(f, "stage", None) == self.stage
+        if self.reuse and f is not None and f.definite and (fresh or self.cg_ok or exact):
+            x, its = pcg(A, b, f, self.cg_rtol if not exact else 1e-12, self.cg_max_iter())
+            c.n_lin_iter += its
+            self.cg_ok = x is not None
+            if x is not None:
+                self.last = "cg"
+                return self.expand(x, r)
+        self.factor = Factor(A, c, definite_only)
+        self.factor.stage = self.stage
+        self.last = "factor"
+        if self.factor.kind == "none":
+            return None
+        return self.expand(self.factor.solve(b), r)
+
+    def shifted_direction(self, r: np.ndarray) -> np.ndarray:
+        """A descent direction when ``A`` is indefinite: ``(A + mu M)^-1 (-M r)`` (Levenberg).
+
+        ``mu`` starts from a quarter of the last shift that worked (1 the first time) and is
+        multiplied by 4 until the shifted matrix is positive definite; each try is one counted
+        factorisation (by CHOLMOD when installed: an indefinite ``A`` costs no SuperLU then).
+        """
+        A = self.factor.A
+        M = sp.diags(self.mass_dofs[self.free]).tocsc()
+        mu = self.mu / 4.0
+        for _ in range(40):
+            shifted = Factor((A + mu * M).tocsc(), self.system.counters, definite_only=True)
+            if shifted.definite:
+                shifted.stage = self.stage
+                self.factor, self.mu = shifted, mu  # a definite preconditioner for later CG
+                self.rho = np.inf
+                return self.expand(shifted.solve(self.rhs(r)), r)
+            mu *= 4.0
+        raise ArithmeticError("no positive definite shift of the Newton matrix found")
+
+    def start_stage(self) -> None:
+        """A new stage equation: the last contraction says nothing about modified steps here."""
+        self.stage += 1
+        self.rho = np.inf
+
+    def contracted(self, ratio: float) -> None:
+        """Record the residual ratio ``|r_new| / |r_old|`` of the last full step (inf: damped).
+
+        The contraction ``rho`` of a modified step (or of the fresh factorisation it would
+        reuse) predicts the next modified steps; a CG step leaves it as it was.
+        """
+        if self.last in ("modified", "factor"):
+            self.rho = ratio
+
+
+_CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def stage_solver(system, c: float, policy: str = "auto") -> StageSolver:
+    """The kept :class:`StageSolver` of ``system`` for coefficient ``c`` and ``policy``."""
+    per_system = _CACHE.setdefault(system, {})
+    key = (float(c), policy)
+    if key not in per_system:
+        if len(per_system) > 8:
+            per_system.clear()
+        per_system[key] = StageSolver(system, c, policy)
+    return per_system[key]
