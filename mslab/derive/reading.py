@@ -5,8 +5,10 @@ splitting ``coefficients = {"drift", "kick"}``, both exactly as the user gave th
 two-step (Verlet) and staggered (leapfrog) adapters carry ``splitting``, the splitting
 they equal, and ``family``. No method class is tested for: only these attributes.
 
-Any other integrator (a user's own ``Integrator`` subclass) is analysed by a symbolic run
-of its own ``start`` and ``step``.
+A method that iterates towards another one's step (``converges_to``: the fast mass-spring
+method minimises implicit Euler's objective) is read as that method. Any other integrator
+(a user's own ``Integrator`` subclass) is analysed by a symbolic run of its own ``start``
+and ``step``.
 """
 
 from __future__ import annotations
@@ -79,6 +81,9 @@ def read(method: str | Integrator) -> Reading:
     if "drift" in coefficients:
         return Reading("splitting", name, drift=tuple(coefficients["drift"]),
                        kick=tuple(coefficients["kick"]), method=m)
+    limit = getattr(m, "converges_to", None)
+    if limit is not None:  # an iteration that minimises another method's objective (local/global)
+        return read(limit)
     family = getattr(m, "family", None)
     inner = getattr(m, "splitting", None)
     return Reading("run", name, splitting=read(inner) if inner is not None else None,
