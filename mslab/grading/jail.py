@@ -128,6 +128,20 @@ def child(config: dict, source: bytes, root: str) -> None:
     os.execve(argv[0], argv, os.environ)
 
 
+def staging_dir(config: dict) -> str:
+    """Pick where the new root is built: an existing folder that holds none of the bound sources.
+
+    The tmpfs mounted there hides what it covers, so a grader whose checkout or venv lives
+    under ``/tmp`` (a fresh clone, CI) must not have its root staged on ``/tmp``.
+    """
+    sources = [m["src"] for m in config["mounts"] if m.get("src", "").startswith("/")]
+    for candidate in ("/mnt", "/media", "/srv", "/tmp", "/var/tmp", "/opt"):
+        if os.path.isdir(candidate) and not any(src == candidate or src.startswith(candidate + "/")
+                                                for src in sources):
+            return candidate
+    raise OSError("no folder to stage the sandbox's root in (every candidate holds a bound source)")
+
+
 def main() -> None:
     """Unshare the namespaces, fork the child and exit as it exits (``CONFIG`` is ``sys.argv[1]``)."""
     config = json.loads(sys.argv[1])
@@ -142,7 +156,7 @@ def main() -> None:
         write("/proc/self/setgroups", "deny")
         write("/proc/self/uid_map", f"{uid} {uid} 1")
         write("/proc/self/gid_map", f"{gid} {gid} 1")
-    root = "/tmp" if os.path.isdir("/tmp") else "/mnt"
+    root = staging_dir(config)
     pid = os.fork()
     if pid == 0:
         try:
