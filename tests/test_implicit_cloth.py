@@ -218,3 +218,25 @@ def test_fast_mass_spring_stable_where_every_explicit_method_blows_up():
                 warnings.simplefilter("ignore")
                 with pytest.raises(InstabilityError):
                     mslab.simulate(scene, name, dt=1 / 30, t_end=2.0)
+
+
+def test_friction_makes_the_newton_matrix_nonsymmetric_and_lu_solves_it():
+    """Friction's df/dv is not symmetric: a Cholesky of half the matrix gave wrong directions.
+
+    The cloth falling onto a ball with friction (lesson 08) converges at dt = 10 ms with fresh
+    and with kept factorisations, and the factor kind says LU.
+    """
+    from mslab.integrators import linear
+
+    scene = mslab.load_scene("cloth_on_sphere")
+    for policy in ("fresh", "reuse"):
+        method = mslab.ImplicitRK([[1]], [1], name=f"ie_{policy}", order=1, linear_solver=policy)
+        traj = mslab.simulate(scene, method, dt=1e-2, t_end=0.4)
+        assert traj.complete and traj.stats.n_iter > traj.stats.steps
+    A = linear.newton_matrix(*scene.system.jacobians(traj.x[-1], traj.v[-1]),
+                             np.repeat(scene.system.mass, 3), np.repeat(~scene.system.pinned, 3), 1e-2)
+    assert not linear._symmetric(A)
+    factor = linear.Factor(A, scene.system.counters)
+    assert factor.kind in ("lu", "lu_pivoted")
+    b = np.random.default_rng(1).standard_normal(A.shape[0])
+    assert np.linalg.norm(A @ factor.solve(b) - b) <= 1e-10 * np.linalg.norm(b)

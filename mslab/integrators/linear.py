@@ -85,8 +85,13 @@ class Factor:
         self.A = A
         self.n_negative = -1
         n = A.shape[0]
+        symmetric = _symmetric(A)
         if n <= DENSE_MAX:
             dense = A.toarray() if sp.issparse(A) else np.asarray(A)
+            if not symmetric:  # friction: D = df/dv is not symmetric, Cholesky would read half of A
+                self._lu = sla.lu_factor(dense, check_finite=False)
+                self.kind, self.definite = "lu", False
+                return
             try:
                 self._cho = sla.cho_factor(dense, lower=True, check_finite=False)
                 self.kind, self.definite, self.n_negative = "cholesky", True, 0
@@ -96,6 +101,10 @@ class Factor:
             return
         A = A.tocsc()
         self.A = A
+        if not symmetric:
+            self._splu = spla.splu(A)  # partial pivoting: the only sound choice for a nonsymmetric A
+            self.kind, self.definite = "lu_pivoted", False
+            return
         if cholmod_factor(self, A):
             return
         if definite_only and _cholmod() is not None:  # the caller shifts A instead
@@ -140,6 +149,14 @@ class Factor:
         if self.kind == "lu":
             return sla.lu_solve(self._lu, b, check_finite=False)
         return self._splu.solve(b)
+
+
+def _symmetric(A) -> bool:  # noqa: ANN001
+    """Return whether ``A`` equals its transpose to round-off (friction makes it not)."""
+    diff = A - A.T
+    size = abs(A).max() if sp.issparse(A) else np.abs(A).max()
+    worst = abs(diff).max() if sp.issparse(diff) else np.abs(diff).max()
+    return bool(worst <= 1e-12 * max(float(size), 1e-300))
 
 
 def _cholmod():
