@@ -47,11 +47,10 @@ import weakref
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import scipy.linalg as sla
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # scipy is imported on first use: `import mslab` stays cheap
+    import scipy.sparse as sp
+
     from mslab.system import Counters, System
 
 #: systems up to this many unknowns factor densely (LAPACK beats building scipy.sparse
@@ -85,6 +84,10 @@ class Factor:
         self.seconds = time.perf_counter() - start  # wall time of the factorisation
 
     def _build(self, A: sp.spmatrix | np.ndarray, counters: Counters, definite_only: bool) -> None:
+        import scipy.linalg as sla
+        import scipy.sparse as sp
+        import scipy.sparse.linalg as spla
+
         counters.n_factor += 1
         self.A = A
         self.n_negative = -1
@@ -137,6 +140,8 @@ class Factor:
         return x
 
     def _solve(self, b: np.ndarray) -> np.ndarray:
+        import scipy.linalg as sla
+
         if self.kind == "cholmod":
             return cholmod_solve(self._chol, b)
         if self.kind == "cholesky":
@@ -168,6 +173,8 @@ def cholmod_factor(factor: Factor, A: sp.csc_matrix) -> bool:
     cvxopt = _cholmod()
     if cvxopt is None:
         return False
+    import scipy.sparse as sp
+
     lower = sp.tril(A, format="csc")
     lower.sort_indices()
     cols = np.repeat(np.arange(lower.shape[1]), np.diff(lower.indptr))
@@ -229,6 +236,8 @@ def pcg(A: sp.spmatrix, b: np.ndarray, precond: Factor, rtol: float,
 def newton_matrix(K: sp.spmatrix, D: sp.spmatrix | None, mass_dofs: np.ndarray, free: np.ndarray,
                   c: float) -> sp.csc_matrix:
     """Return ``A = M - c^2 K - c D`` on the free dofs (CSC); ``D`` may be None."""
+    import scipy.sparse as sp
+
     lin = K * (c * c) if D is None else K * (c * c) + D * c
     lin = lin.tocsr()[free][:, free]
     return (sp.diags(mass_dofs[free]) - lin).tocsc()
@@ -351,6 +360,8 @@ class StageSolver:
         factorisation (by CHOLMOD when installed: an indefinite ``A`` costs no SuperLU then).
         """
         A = self.factor.A
+        import scipy.sparse as sp
+
         M = sp.diags(self.mass_dofs[self.free]).tocsc()
         mu = self.mu / 4.0
         for _ in range(40):

@@ -40,7 +40,6 @@ import weakref
 from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.sparse as sp
 
 from mslab.integrators.base import Integrator
 from mslab.integrators.linear import Factor
@@ -60,6 +59,8 @@ class GlobalStep:
     """
 
     def __init__(self, system: System, dt: float):
+        import scipy.sparse as sp  # on first use: `import mslab` stays cheap
+
         self.dt = dt
         springs = [e for e in system.effects if e.name == "springs"]
         self.i = np.concatenate([e.i for e in springs]) if springs else np.zeros(0, np.int64)
