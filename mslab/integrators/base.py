@@ -20,10 +20,14 @@ stepping, a family answers for its methods what the analysis needs:
 from __future__ import annotations
 
 import difflib
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from mslab.state import State
+
+if TYPE_CHECKING:
+    from mslab.system import System
 
 #: The integrators the course teaches, in teaching order.
 COURSE_METHODS = ("euler", "symplectic_euler", "symplectic_euler_x", "heun", "midpoint", "rk4",
@@ -68,11 +72,11 @@ class Integrator:
     n_start: int = 0
     coefficients: dict = {}
 
-    def start(self, system, state: State, dt: float) -> State:
+    def start(self, system: System, state: State, dt: float) -> State:
         """Prepare a run (start-up step of a method with memory). Default: nothing."""
         return state
 
-    def step(self, system, state: State, dt: float) -> State:
+    def step(self, system: System, state: State, dt: float) -> State:
         """One step of size ``dt``: a new State; ``state`` is not modified."""
         raise NotImplementedError
 
@@ -118,7 +122,7 @@ def methods() -> list[str]:
 
 
 def get_method(name: str | Integrator) -> Integrator:
-    """The registered integrator called ``name`` (``-`` and ``_`` are interchangeable).
+    """Return the registered integrator called ``name`` (``-`` and ``_`` are interchangeable).
 
     Raises ValueError naming the valid methods (and the closest one) otherwise.
     """

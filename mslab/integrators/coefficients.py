@@ -8,13 +8,15 @@ ones stay exact there. Both are made once here, when a method is created, and fr
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from fractions import Fraction
 from numbers import Number
+from typing import Any
 
 import numpy as np
 
 
-def to_float(value) -> float:
+def to_float(value: Any) -> float:
     """One coefficient as a float: numbers, ``Fraction``, sympy numbers, strings like ``"1/6"``."""
     if isinstance(value, str):
         text = value.strip()
@@ -29,15 +31,15 @@ def to_float(value) -> float:
     return float(value)  # sympy expressions define __float__
 
 
-def as_given(values) -> tuple:
+def as_given(values: Any) -> tuple:
     """Nested tuples of the coefficients exactly as given (numpy scalars become Python ones)."""
     if isinstance(values, str) or not np.iterable(values):
         return values.item() if isinstance(values, np.generic) else values
     return tuple(as_given(v) for v in values)
 
 
-def frozen(values, ndim: int) -> np.ndarray:
-    """A read-only float array of the coefficients (ValueError on a wrong shape)."""
+def frozen(values: Iterable[Any], ndim: int) -> np.ndarray:
+    """Return a read-only float array of the coefficients (ValueError on a wrong shape)."""
     arr = np.array([[to_float(v) for v in row] for row in values] if ndim == 2
                    else [to_float(v) for v in values], dtype=float)
     if arr.ndim != ndim:

@@ -1,6 +1,8 @@
-"""The implicit Runge-Kutta methods: implicit Euler (Newton and fixed point), implicit
-midpoint, and beyond the course Baraff-Witkin's linearised implicit Euler, SDIRK2, Gauss
-(2 stages) and Radau IIA (2 stages)."""
+"""The implicit Runge-Kutta methods: implicit Euler (Newton and fixed point), implicit midpoint.
+
+Beyond the course: Baraff-Witkin's linearised implicit Euler, SDIRK2, Gauss (2 stages) and
+Radau IIA (2 stages).
+"""
 
 from fractions import Fraction as Fr
 from math import sqrt

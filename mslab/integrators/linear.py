@@ -44,11 +44,14 @@ from __future__ import annotations
 
 import time
 import weakref
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import scipy.linalg as sla
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
+
+if TYPE_CHECKING:  # scipy is imported on first use: `import mslab` stays cheap
+    import scipy.sparse as sp
+
+    from mslab.system import Counters, System
 
 #: systems up to this many unknowns factor densely (LAPACK beats building scipy.sparse
 #: objects there)
@@ -75,12 +78,16 @@ class Factor:
         ``"lu_pivoted"``.
     """
 
-    def __init__(self, A, counters, definite_only: bool = False):
+    def __init__(self, A: sp.spmatrix | np.ndarray, counters: Counters, definite_only: bool = False):
         start = time.perf_counter()
         self._build(A, counters, definite_only)
         self.seconds = time.perf_counter() - start  # wall time of the factorisation
 
-    def _build(self, A, counters, definite_only: bool) -> None:
+    def _build(self, A: sp.spmatrix | np.ndarray, counters: Counters, definite_only: bool) -> None:
+        import scipy.linalg as sla
+        import scipy.sparse as sp
+        import scipy.sparse.linalg as spla
+
         counters.n_factor += 1
         self.A = A
         self.n_negative = -1
@@ -127,7 +134,7 @@ class Factor:
         self.kind, self.definite = "lu_pivoted", False
 
     def _accurate(self) -> bool:
-        """The unpivoted factors solve ``A`` to a relative 1e-8 (checked on a random right side)."""
+        """Check that the unpivoted factors solve ``A`` to a relative 1e-8 (on a random right side)."""
         b = np.random.default_rng(0).standard_normal(self.A.shape[0])
         x = self._splu.solve(b)
         return bool(np.all(np.isfinite(x)) and np.linalg.norm(self.A @ x - b) <= 1e-8 * np.linalg.norm(b))
@@ -142,6 +149,8 @@ class Factor:
         return x
 
     def _solve(self, b: np.ndarray) -> np.ndarray:
+        import scipy.linalg as sla
+
         if self.kind == "cholmod":
             return cholmod_solve(self._chol, b)
         if self.kind == "cholesky":
@@ -168,9 +177,11 @@ def _cholmod():
     return cvxopt
 
 
-def cholmod_factor(factor: Factor, A) -> bool:
-    """Factor ``A`` (CSC, symmetric) by CHOLMOD (through cvxopt) into ``factor``; False when
-    CHOLMOD is not installed or ``A`` is not positive definite (then SuperLU takes over).
+def cholmod_factor(factor: Factor, A: sp.csc_matrix) -> bool:
+    """Factor ``A`` (CSC, symmetric) by CHOLMOD (through cvxopt) into ``factor``.
+
+    Return False when CHOLMOD is not installed or ``A`` is not positive definite (then
+    SuperLU takes over).
 
     Each factorisation runs CHOLMOD's symbolic analysis (fill-reducing ordering,
     supernodes) and its numeric Cholesky; cvxopt's factor object holds both, so a kept
@@ -179,6 +190,8 @@ def cholmod_factor(factor: Factor, A) -> bool:
     cvxopt = _cholmod()
     if cvxopt is None:
         return False
+    import scipy.sparse as sp
+
     lower = sp.tril(A, format="csc")
     lower.sort_indices()
     cols = np.repeat(np.arange(lower.shape[1]), np.diff(lower.indptr))
@@ -194,7 +207,7 @@ def cholmod_factor(factor: Factor, A) -> bool:
     return True
 
 
-def cholmod_solve(F, b: np.ndarray) -> np.ndarray:
+def cholmod_solve(F: Any, b: np.ndarray) -> np.ndarray:
     """``A^-1 b`` with CHOLMOD's factors (``b`` of shape (n,) or (n, k))."""
     import cvxopt
     import cvxopt.cholmod
@@ -204,7 +217,8 @@ def cholmod_solve(F, b: np.ndarray) -> np.ndarray:
     return np.array(B).reshape(b.shape)
 
 
-def pcg(A, b: np.ndarray, precond: Factor, rtol: float, max_iter: int) -> tuple[np.ndarray | None, int]:
+def pcg(A: sp.spmatrix, b: np.ndarray, precond: Factor, rtol: float,
+        max_iter: int) -> tuple[np.ndarray | None, int]:
     """Conjugate gradients on ``A x = b`` preconditioned by ``precond.solve``.
 
     Returns ``(x, iterations)``; ``x`` is None when CG does not reach ``|r| <= rtol |b|`` in
@@ -236,8 +250,11 @@ def pcg(A, b: np.ndarray, precond: Factor, rtol: float, max_iter: int) -> tuple[
     return None, max_iter
 
 
-def newton_matrix(K, D, mass_dofs: np.ndarray, free: np.ndarray, c: float):
-    """``A = M - c^2 K - c D`` on the free dofs (CSC); ``D`` may be None."""
+def newton_matrix(K: sp.spmatrix, D: sp.spmatrix | None, mass_dofs: np.ndarray, free: np.ndarray,
+                  c: float) -> sp.csc_matrix:
+    """Return ``A = M - c^2 K - c D`` on the free dofs (CSC); ``D`` may be None."""
+    import scipy.sparse as sp
+
     lin = K * (c * c) if D is None else K * (c * c) + D * c
     lin = lin.tocsr()[free][:, free]
     return (sp.diags(mass_dofs[free]) - lin).tocsc()
@@ -265,7 +282,7 @@ class StageSolver:
     #: factorisation costs in solves (measured), within these bounds
     cg_iter_bounds: tuple = (4, 60)
 
-    def __init__(self, system, c: float, policy: str = "auto"):
+    def __init__(self, system: System, c: float, policy: str = "auto"):
         if policy not in POLICIES:
             raise ValueError(f"linear solver policy must be one of {POLICIES}, got {policy!r}")
         self.system = system
@@ -282,7 +299,7 @@ class StageSolver:
         self.last = ""  # how the last direction was found: "modified", "cg" or "factor"
         self.mu = 4.0  # four times the next shift to try when A is indefinite
 
-    def _assemble(self, point, r):
+    def _assemble(self, point: tuple, r: np.ndarray):
         X, V = point[0], point[1]
         K, D = self.system.jacobians(X, V)
         lin = K * self.c if D is None else K * self.c + D
@@ -304,13 +321,14 @@ class StageSolver:
         return -(self.mass_dofs[self.free] * r[self.free])
 
     def expand(self, du_free: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """Return ``du_free`` on the free dofs and ``-r`` on the pinned ones, all dofs."""
         du = -r.astype(float, copy=True)  # pinned dofs: du = -r (zero: V = v^ there)
         du[self.free] = du_free
         return du
 
-    def direction(self, point, r: np.ndarray, exact: bool = False, decades: float = 10.0,
+    def direction(self, point: tuple, r: np.ndarray, exact: bool = False, decades: float = 10.0,
                   definite_only: bool = False) -> np.ndarray | None:
-        """The Newton direction for residual ``r`` (flat, all dofs) at ``point``.
+        """Return the Newton direction for residual ``r`` (flat, all dofs) at ``point``.
 
         ``exact``: no modified Newton step (the current Jacobian is used). ``decades``: how
         many powers of ten the residual must still fall (for the cost model below).
@@ -352,13 +370,15 @@ class StageSolver:
         return self.expand(self.factor.solve(b), r)
 
     def shifted_direction(self, r: np.ndarray) -> np.ndarray:
-        """A descent direction when ``A`` is indefinite: ``(A + mu M)^-1 (-M r)`` (Levenberg).
+        """Return a descent direction when ``A`` is indefinite: ``(A + mu M)^-1 (-M r)`` (Levenberg).
 
         ``mu`` starts from a quarter of the last shift that worked (1 the first time) and is
         multiplied by 4 until the shifted matrix is positive definite; each try is one counted
         factorisation (by CHOLMOD when installed: an indefinite ``A`` costs no SuperLU then).
         """
         A = self.factor.A
+        import scipy.sparse as sp
+
         M = sp.diags(self.mass_dofs[self.free]).tocsc()
         mu = self.mu / 4.0
         for _ in range(40):
@@ -372,7 +392,7 @@ class StageSolver:
         raise ArithmeticError("no positive definite shift of the Newton matrix found")
 
     def start_stage(self) -> None:
-        """A new stage equation: the last contraction says nothing about modified steps here."""
+        """Start a new stage equation: the last contraction says nothing about modified steps here."""
         self.stage += 1
         self.rho = np.inf
 
@@ -389,8 +409,8 @@ class StageSolver:
 _CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def stage_solver(system, c: float, policy: str = "auto") -> StageSolver:
-    """The kept :class:`StageSolver` of ``system`` for coefficient ``c`` and ``policy``."""
+def stage_solver(system: System, c: float, policy: str = "auto") -> StageSolver:
+    """Return the kept :class:`StageSolver` of ``system`` for coefficient ``c`` and ``policy``."""
     per_system = _CACHE.setdefault(system, {})
     key = (float(c), policy)
     if key not in per_system:

@@ -37,14 +37,17 @@ Mass-Spring Systems", ACM Trans. Graph. 32(6), 209 (2013). Related: projective d
 from __future__ import annotations
 
 import weakref
+from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.sparse as sp
 
 from mslab.integrators.base import Integrator
 from mslab.integrators.linear import Factor
 from mslab.integrators.local_step import projections
 from mslab.state import State
+
+if TYPE_CHECKING:
+    from mslab.system import System
 
 _CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
@@ -55,7 +58,9 @@ class GlobalStep:
     Built once per (system, dt) and kept (:func:`global_step`); counts one ``n_factor``.
     """
 
-    def __init__(self, system, dt: float):
+    def __init__(self, system: System, dt: float):
+        import scipy.sparse as sp  # on first use: `import mslab` stays cheap
+
         self.dt = dt
         springs = [e for e in system.effects if e.name == "springs"]
         self.i = np.concatenate([e.i for e in springs]) if springs else np.zeros(0, np.int64)
@@ -77,8 +82,8 @@ class GlobalStep:
         self.factor = Factor(Q.tocsc(), system.counters)
 
 
-def global_step(system, dt: float) -> GlobalStep:
-    """The kept :class:`GlobalStep` of ``system`` at step ``dt`` (built on first use)."""
+def global_step(system: System, dt: float) -> GlobalStep:
+    """Return the kept :class:`GlobalStep` of ``system`` at step ``dt`` (built on first use)."""
     per_system = _CACHE.setdefault(system, {})
     if dt not in per_system:
         if len(per_system) > 8:
@@ -124,7 +129,7 @@ class LocalGlobal(Integrator):
             self.__doc__ = doc
 
     # -- analysis: the linear limit ---------------------------------------------------------------
-    def stability_function(self, z):
+    def stability_function(self, z: np.ndarray) -> np.ndarray:
         """``R(z) = 1/(1 - z)``, implicit Euler's.
 
         In the linear limit (a spring along its own axis, as in the course's oscillator, or
@@ -135,7 +140,7 @@ class LocalGlobal(Integrator):
         with np.errstate(divide="ignore", invalid="ignore"):
             return np.where(z == 1.0, np.inf, 1.0 / np.where(z == 1.0, 0.0, 1.0 - z))
 
-    def oscillator_matrix(self, h_omega, h_gamma):
+    def oscillator_matrix(self, h_omega: np.ndarray, h_gamma: np.ndarray) -> np.ndarray:
         """Implicit Euler's map ``(I - dt J)^-1`` on the state ``(x, dt v)`` (linear limit)."""
         w2, g = np.broadcast_arrays(np.square(np.asarray(h_omega, dtype=float)),
                                     np.asarray(h_gamma, dtype=float))
@@ -148,7 +153,7 @@ class LocalGlobal(Integrator):
         return out
 
     # -- stepping ---------------------------------------------------------------------------------
-    def step(self, system, state: State, dt: float) -> State:
+    def step(self, system: System, state: State, dt: float) -> State:
         """One step: ``iterations`` local/global sweeps from the inertial guess ``y``."""
         g = global_step(system, dt)
         c = system.counters

@@ -15,7 +15,8 @@ import numpy as np
 _COMPILED = None
 
 
-def projections_py(x, i, j, stiffness, rest_length, out):
+def projections_py(x: np.ndarray, i: np.ndarray, j: np.ndarray, stiffness: np.ndarray,
+                   rest_length: np.ndarray, out: np.ndarray) -> None:
     """Add ``sum_q k_q d_q (e_i - e_j)`` to ``out`` (n_particles, dim) in place (plain loop)."""
     dim = x.shape[1]
     for q in range(i.shape[0]):
@@ -36,7 +37,7 @@ def projections_py(x, i, j, stiffness, rest_length, out):
 
 def projections(x: np.ndarray, i: np.ndarray, j: np.ndarray, stiffness: np.ndarray,
                 rest_length: np.ndarray, out: np.ndarray) -> None:
-    """The local step, compiled (``numba.njit(cache=True)``) on the first call.
+    """Run the local step, compiled (``numba.njit(cache=True)``) on the first call.
 
     Parameters
     ----------

@@ -15,17 +15,24 @@ computed from the very arrays that step.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
 from mslab.integrators.base import Integrator
 from mslab.integrators.coefficients import as_given, frozen
 from mslab.state import State
 
+if TYPE_CHECKING:
+    from mslab.system import System
+
 
 class _RungeKutta(Integrator):
     """What explicit and implicit tableaux share: coefficients, R(z), the oscillator map."""
 
-    def __init__(self, A, b, c=None, name: str = "runge_kutta", order: int = 0, doc: str | None = None):
+    def __init__(self, A: Iterable[Iterable[Any]], b: Iterable[Any], c: Iterable[Any] | None = None,
+                 name: str = "runge_kutta", order: int = 0, doc: str | None = None):
         self.coefficients = {"A": as_given(A), "b": as_given(b), "c": None if c is None else as_given(c)}
         self.A = frozen(A, 2)
         self.b = frozen(b, 1)
@@ -40,7 +47,7 @@ class _RungeKutta(Integrator):
         if doc:
             self.__doc__ = doc
 
-    def stability_function(self, z):
+    def stability_function(self, z: np.ndarray) -> np.ndarray:
         """``R(z) = det(I - zA + z 1 b^T) / det(I - zA)``; inf at a pole (explicit: a polynomial)."""
         z = np.asarray(z, dtype=complex)
         A, b = self.A, self.b
@@ -60,7 +67,7 @@ class _RungeKutta(Integrator):
             R = np.where(den == 0, np.inf, num / np.where(den == 0, 1.0, den))
         return R.reshape(z.shape)
 
-    def oscillator_matrix(self, h_omega, h_gamma):
+    def oscillator_matrix(self, h_omega: np.ndarray, h_gamma: np.ndarray) -> np.ndarray:
         """``R(dt J)`` with ``dt J = [[0, 1], [-h_omega^2, -h_gamma]]`` on the state ``(x, dt v)``."""
         w2, g = np.broadcast_arrays(np.square(np.asarray(h_omega, dtype=float)),
                                     np.asarray(h_gamma, dtype=float))
@@ -124,7 +131,8 @@ class ExplicitRK(_RungeKutta):
     family = "explicit_rk"
     explicit = True
 
-    def __init__(self, A, b, c=None, name: str = "explicit_rk", order: int = 0, doc: str | None = None):
+    def __init__(self, A: Iterable[Iterable[Any]], b: Iterable[Any], c: Iterable[Any] | None = None,
+                 name: str = "explicit_rk", order: int = 0, doc: str | None = None):
         super().__init__(A, b, c, name, order, doc)
         if np.any(np.triu(self.A) != 0.0):
             raise ValueError("Butcher tableau of an explicit method: A must be strictly lower triangular")
@@ -133,11 +141,11 @@ class ExplicitRK(_RungeKutta):
         self._rows = [[(j, self.A[i, j]) for j in range(i) if self.A[i, j] != 0.0] for i in range(s)]
 
     @property
-    def compiled(self):
+    def compiled(self) -> tuple[str, tuple]:
         """The generic compiled Runge-Kutta loop over ``A, b``."""
         return "explicit_rk", (self.A, self.b)
 
-    def step(self, system, state: State, dt: float) -> State:
+    def step(self, system: System, state: State, dt: float) -> State:
         """One step: ``s`` counted force evaluations."""
         x, v = state.x, state.v
         vs: list[np.ndarray] = []
@@ -196,7 +204,8 @@ class ImplicitRK(_RungeKutta):
     rtol: float = 1e-10
     max_iter: int = 25
 
-    def __init__(self, A, b, c=None, name: str = "implicit_rk", order: int = 0, solver: str = "newton",
+    def __init__(self, A: Iterable[Iterable[Any]], b: Iterable[Any], c: Iterable[Any] | None = None,
+                 name: str = "implicit_rk", order: int = 0, solver: str = "newton",
                  symplectic: bool = False, doc: str | None = None, linear_solver: str = "auto"):
         super().__init__(A, b, c, name, order, doc)
         if solver not in ("newton", "fixed_point", "linearised"):
@@ -225,7 +234,7 @@ class ImplicitRK(_RungeKutta):
         left = np.abs(self.stability_function(np.outer(np.geomspace(1e-2, 1e6, 60), np.exp(1j * theta))))
         return bool(np.all(on_axis <= 1.0 + 1e-9) and np.all(left <= 1.0 + 1e-9))
 
-    def step(self, system, state: State, dt: float) -> State:
+    def step(self, system: System, state: State, dt: float) -> State:
         """One step: solve for the stages, then combine them with ``b``."""
         from mslab.integrators import solvers
 

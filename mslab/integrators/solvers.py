@@ -27,10 +27,18 @@ gradient iteration), ``n_iter`` (every iteration).
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from mslab.errors import StepFailure
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
+
+    from mslab.integrators.runge_kutta import ImplicitRK
+    from mslab.state import State
+    from mslab.system import System
 
 #: systems up to this many unknowns solve Newton's linear system densely (LAPACK beats
 #: building scipy.sparse objects there); larger ones use a sparse direct solve
@@ -41,7 +49,7 @@ def _scale(*arrays: np.ndarray) -> float:
     return 1.0 + max(float(np.max(np.abs(a))) if a.size else 0.0 for a in arrays)
 
 
-def _newton(system, u0: np.ndarray, residual: Callable, solve: Callable, tol: float, max_iter: int,
+def _newton(system: System, u0: np.ndarray, residual: Callable, solve: Callable, tol: float, max_iter: int,
             full_steps: int):
     """Newton's iteration ``u <- u + alpha du`` with ``J du = -r``.
 
@@ -76,7 +84,7 @@ def _newton(system, u0: np.ndarray, residual: Callable, solve: Callable, tol: fl
                       f"(residual tolerance {tol:.2e}); try a smaller dt")
 
 
-def _linear_solve(S, residual: np.ndarray) -> tuple[np.ndarray, float]:
+def _linear_solve(S: sp.spmatrix, residual: np.ndarray) -> tuple[np.ndarray, float]:
     """Solve ``(I - S) du = -residual`` (S sparse); also return ``max_i sum_j |S_ij|``."""
     if residual.size <= DENSE_MAX:
         S = S.toarray()
@@ -93,7 +101,7 @@ def _linear_solve(S, residual: np.ndarray) -> tuple[np.ndarray, float]:
     return spla.spsolve(J, -residual), row_sum
 
 
-def _scaled(system, lin, factor: float):
+def _scaled(system: System, lin: sp.spmatrix, factor: float):
     """``factor * M^-1 lin`` (rows scaled by the inverse masses; 0 on pinned particles)."""
     lin = lin.tocsr(copy=True)
     minv = np.repeat(system.inv_mass, system.dim)
@@ -101,14 +109,15 @@ def _scaled(system, lin, factor: float):
     return lin
 
 
-def newton_stages(method, system, state, dt: float):
+def newton_stages(method: ImplicitRK, system: System, state: State,
+                  dt: float) -> tuple[list[np.ndarray], list[np.ndarray], list[float]]:
     """Stage velocities, accelerations and powers of an implicit tableau by Newton's method."""
     if method.diagonally_implicit:
         return _newton_dirk(method, system, state, dt)
     return _newton_coupled(method, system, state, dt)
 
 
-def _newton_dirk(method, system, state, dt: float):
+def _newton_dirk(method: ImplicitRK, system: System, state: State, dt: float):
     A = method.A
     vs, accs, powers = [], [], []
     tol0 = method.rtol * _scale(state.v)
@@ -132,8 +141,9 @@ def _newton_dirk(method, system, state, dt: float):
     return vs, accs, powers
 
 
-def newton_stage(system, xh: np.ndarray, vh: np.ndarray, c: float, tol: float, max_iter: int,
-                 policy: str = "auto", linearised: bool = False, full_steps: int = 4):
+def newton_stage(system: System, xh: np.ndarray, vh: np.ndarray, c: float, tol: float, max_iter: int,
+                 policy: str = "auto", linearised: bool = False,
+                 full_steps: int = 4) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """Solve one implicit Euler-like stage ``V - v^ - c a(x^ + c V, V) = 0`` by Newton's method.
 
     Directions from :class:`mslab.integrators.linear.StageSolver` (symmetric free-dof matrix,
@@ -152,12 +162,12 @@ def newton_stage(system, xh: np.ndarray, vh: np.ndarray, c: float, tol: float, m
     solver = linear.stage_solver(system, c, policy)
     var = variational(system)
 
-    def residual(V):
+    def residual(V: np.ndarray):
         X = xh + c * V
         a, p = system.rhs(X, V)
         return V - vh - c * a, (X, V, a, p)
 
-    def phi(V):
+    def phi(V: np.ndarray):
         return objective(system, xh, vh, c, V)
 
     if solver.reuse:  # modified Newton converges linearly: allow it more (cheap) iterations
@@ -235,7 +245,7 @@ def newton_stage(system, xh: np.ndarray, vh: np.ndarray, c: float, tol: float, m
                       f"(tolerance {max(tol, floor):.2e}); try a smaller dt")
 
 
-def _newton_coupled(method, system, state, dt: float):
+def _newton_coupled(method: ImplicitRK, system: System, state: State, dt: float):
     import scipy.sparse as sp
 
     A = method.A
@@ -244,19 +254,19 @@ def _newton_coupled(method, system, state, dt: float):
     shape = state.v.shape
     tol = method.rtol * _scale(state.v)
 
-    def points(U):
+    def points(U: np.ndarray):
         V = U.reshape((s,) + shape)
         X = state.x[None] + dt * np.einsum("ij,jnd->ind", A, V)
         return X, V
 
-    def residual(U):
+    def residual(U: np.ndarray):
         X, V = points(U)
         evals = [system.rhs(X[i], V[i]) for i in range(s)]
         a = np.stack([e[0] for e in evals])
         G = V - state.v[None] - dt * np.einsum("ij,jnd->ind", A, a)
         return G.ravel(), (X, V, a, [e[1] for e in evals])
 
-    def solve(point, r):
+    def solve(point: tuple, r: np.ndarray):
         X, V, _, _ = point
         blocks_K, blocks_D = [], []
         for i in range(s):
@@ -276,9 +286,12 @@ def _newton_coupled(method, system, state, dt: float):
     return list(V), list(a), p
 
 
-def variational(system) -> bool:
-    """The forces derive from the objective :func:`objective`: conservative position-only
-    effects plus linear drag (``f = -gamma v``, ``D`` constant and symmetric)."""
+def variational(system: System) -> bool:
+    """Tell whether the forces derive from the objective :func:`objective`.
+
+    True for conservative position-only effects plus linear drag (``f = -gamma v``, ``D``
+    constant and symmetric).
+    """
     for e in system.effects:
         if e.name == "damping":
             continue
@@ -287,8 +300,10 @@ def variational(system) -> bool:
     return True
 
 
-def objective(system, xh: np.ndarray, vh: np.ndarray, c: float, V: np.ndarray) -> float:
-    """Implicit Euler's objective of one stage, whose gradient is ``M r``::
+def objective(system: System, xh: np.ndarray, vh: np.ndarray, c: float, V: np.ndarray) -> float:
+    """Return implicit Euler's objective of one stage, whose gradient is ``M r``.
+
+    ::
 
         Phi(V) = 1/2 (V - v^)^T M (V - v^) + U(x^ + c V) + c/2 gamma |V|^2
 
@@ -301,7 +316,8 @@ def objective(system, xh: np.ndarray, vh: np.ndarray, c: float, V: np.ndarray) -
     return kin + system.potential_energy(xh + c * V) + drag
 
 
-def fixed_point_stages(method, system, state, dt: float):
+def fixed_point_stages(method: ImplicitRK, system: System, state: State,
+                       dt: float) -> tuple[list[np.ndarray], list[np.ndarray], list[float]]:
     """Stage velocities, accelerations and powers by the iteration ``Y <- y_n + h A F(Y)``."""
     A = method.A
     s = A.shape[0]

@@ -29,11 +29,18 @@ evaluation. The dissipated power is booked with the sub-step's weights ``b_i h b
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
 from mslab.integrators.base import Integrator, get_method
 from mslab.integrators.coefficients import as_given, frozen
 from mslab.state import State
+
+if TYPE_CHECKING:
+    from mslab.integrators.runge_kutta import ExplicitRK
+    from mslab.system import System
 
 #: The explicit Runge-Kutta method that integrates a kick with velocity-dependent forces,
 #: by the splitting's order.
@@ -63,7 +70,8 @@ class Splitting(Integrator):
     family = "splitting"
     explicit = True
     symplectic = True
-    def __init__(self, drift, kick, name: str = "splitting", order: int = 0, doc: str | None = None):
+    def __init__(self, drift: Iterable[Any], kick: Iterable[Any], name: str = "splitting",
+                 order: int = 0, doc: str | None = None):
         self.coefficients = {"drift": as_given(drift), "kick": as_given(kick)}
         self.drift = frozen(drift, 1)
         self.kick = frozen(kick, 1)
@@ -82,26 +90,26 @@ class Splitting(Integrator):
             self.__doc__ = doc
 
     @property
-    def kick_method(self):
+    def kick_method(self) -> ExplicitRK:
         """The explicit Runge-Kutta method of this order that steps kicks with velocity-dependent forces."""
         return get_method(KICK_METHODS[max(self.order, 1)])
 
     @property
-    def compiled(self):
+    def compiled(self) -> tuple[str, tuple]:
         """The generic compiled splitting loop over ``drift, kick``."""
         return "splitting", (self.drift, self.kick)
 
-    def _reuses(self, system) -> bool:
+    def _reuses(self, system: System) -> bool:
         return self.fsal and not system.velocity_dependent
 
-    def start(self, system, state: State, dt: float) -> State:
+    def start(self, system: System, state: State, dt: float) -> State:
         """Evaluate the first acceleration once when it is reused from step to step."""
         if not self._reuses(system):
             return state
         a, p = system.rhs(state.x, state.v)
         return State(state.x, state.v, (a, p), state.dissipated)
 
-    def _kick(self, system, x, v, bh: float):
+    def _kick(self, system: System, x: np.ndarray, v: np.ndarray, bh: float):
         """``v' = v + bh a(x, v)``, by :attr:`kick_method` when forces depend on velocity."""
         a, p = system.rhs(x, v)
         if not system.velocity_dependent:
@@ -123,7 +131,7 @@ class Splitting(Integrator):
                 power += bi * p
         return new, power
 
-    def step(self, system, state: State, dt: float) -> State:
+    def step(self, system: System, state: State, dt: float) -> State:
         """One step: drifts and kicks in turn (see the class docstring)."""
         x, v, work = state.x, state.v, 0.0
         reuse = self._reuses(system)
@@ -144,7 +152,7 @@ class Splitting(Integrator):
             x = x + (dt * self.drift[-1]) * v
         return State(x, v, (a, p) if reuse else (), state.dissipated + work)
 
-    def oscillator_matrix(self, h_omega, h_gamma):
+    def oscillator_matrix(self, h_omega: np.ndarray, h_gamma: np.ndarray) -> np.ndarray:
         """Product of the drift and kick matrices on ``(x, dt v)`` for ``x'' = -w^2 x - gamma x'``.
 
         Drift ``a``: ``[[1, a], [0, 1]]``. A kick ``b`` steps ``u' = -g u - w2 x`` (x fixed)
@@ -163,7 +171,7 @@ class Splitting(Integrator):
             w = rk.A @ w
         M = eye.copy()
 
-        def drift(a):
+        def drift(a: float):
             D = eye.copy()
             D[..., 0, 1] = a
             return D

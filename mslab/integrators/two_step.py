@@ -10,13 +10,18 @@ second-order velocity estimate.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from mslab.integrators.base import Integrator
 from mslab.state import State
 
+if TYPE_CHECKING:
+    from mslab.system import System
 
-def _eye_stack(shape, k: int) -> np.ndarray:
+
+def _eye_stack(shape: tuple[int, ...], k: int) -> np.ndarray:
     return np.broadcast_to(np.eye(k), shape + (k, k)).copy()
 
 
@@ -43,17 +48,17 @@ class Verlet(Integrator):
         self.name, self.order, self.splitting = name, order, splitting
 
     @property
-    def compiled(self):
+    def compiled(self) -> tuple[str, tuple]:
         """The compiled Verlet loop."""
         return "verlet", ()
 
-    def start(self, system, state, dt):
+    def start(self, system: System, state: State, dt: float) -> State:
         """``x_{-1}`` from the backward Taylor series."""
         a, p = system.rhs(state.x, state.v)
         x_prev = state.x - dt * state.v + (0.5 * dt * dt) * a
         return State(state.x, state.v, (x_prev, p), state.dissipated)
 
-    def step(self, system, state, dt):
+    def step(self, system: System, state: State, dt: float) -> State:
         """``x_{n+1} = 2 x_n - x_{n-1} + h^2 a_n`` and the velocity estimate."""
         x_prev, p_prev = state.memory
         a, p = system.rhs(state.x, state.v)
@@ -61,8 +66,8 @@ class Verlet(Integrator):
         v = (x - state.x) / dt + (0.5 * dt) * a
         return State(x, v, (state.x, p), state.dissipated + 0.5 * dt * (3.0 * p - p_prev))
 
-    def oscillator_matrix(self, h_omega, h_gamma):
-        """The map of ``(x, dt v, x_prev)`` for ``x'' = -w^2 x - gamma x'`` (dt = 1)."""
+    def oscillator_matrix(self, h_omega: np.ndarray, h_gamma: np.ndarray) -> np.ndarray:
+        """Return the map of ``(x, dt v, x_prev)`` for ``x'' = -w^2 x - gamma x'`` (dt = 1)."""
         w2, g = np.broadcast_arrays(np.square(np.asarray(h_omega, dtype=float)),
                                     np.asarray(h_gamma, dtype=float))
         M = np.zeros(w2.shape + (3, 3))
@@ -96,16 +101,16 @@ class Leapfrog(Integrator):
         self.name, self.order, self.splitting = name, order, splitting
 
     @property
-    def compiled(self):
+    def compiled(self) -> tuple[str, tuple]:
         """The compiled leapfrog loop."""
         return "leapfrog", ()
 
-    def start(self, system, state, dt):
-        """The half Euler step to ``v_{1/2}``."""
+    def start(self, system: System, state: State, dt: float) -> State:
+        """Take the half Euler step to ``v_{1/2}``."""
         a, p = system.rhs(state.x, state.v)
         return State(state.x, state.v, (state.v + (0.5 * dt) * a, a, p), state.dissipated)
 
-    def step(self, system, state, dt):
+    def step(self, system: System, state: State, dt: float) -> State:
         """Drift with ``v_{n+1/2}``, then kick to ``v_{n+3/2}``."""
         v_half, a_old, p_old = state.memory
         x = state.x + dt * v_half
@@ -114,8 +119,8 @@ class Leapfrog(Integrator):
         v = v_half + (0.5 * dt) * a
         return State(x, v, (v_half + dt * a, a, p), state.dissipated + 0.5 * dt * (p_old + p))
 
-    def oscillator_matrix(self, h_omega, h_gamma):
-        """The map of ``(x, dt v_half, dt^2 a_prev)`` for ``x'' = -w^2 x - gamma x'`` (dt = 1)."""
+    def oscillator_matrix(self, h_omega: np.ndarray, h_gamma: np.ndarray) -> np.ndarray:
+        """Return the map of ``(x, dt v_half, dt^2 a_prev)`` for ``x'' = -w^2 x - gamma x'`` (dt = 1)."""
         w2, g = np.broadcast_arrays(np.square(np.asarray(h_omega, dtype=float)),
                                     np.asarray(h_gamma, dtype=float))
         M = np.zeros(w2.shape + (3, 3))
