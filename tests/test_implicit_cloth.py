@@ -86,7 +86,7 @@ def test_symmetric_factor_reads_the_inertia():
 
 
 @pytest.mark.parametrize("policy", ["reuse", "fresh"])
-def test_hard_compression_falls_back_and_converges(policy):
+def test_hard_compression_falls_back_and_converges(policy, monkeypatch):
     """The stiff chain squeezed to 80 % of its length: Newton's matrix is indefinite (checked
     with eigvalsh), the factorisation says so, and Newton still converges to implicit Euler."""
     scene = mslab.load_scene("stiff_chain")
@@ -99,10 +99,19 @@ def test_hard_compression_falls_back_and_converges(policy):
     negative = int(np.count_nonzero(np.linalg.eigvalsh(A.toarray()) < 0))
     assert negative > 0 and not linear.Factor(A, s.counters).definite
     method = ImplicitRK([[1]], [1], name="ie_" + policy, order=1, linear_solver=policy)
+    shifts = []
+    original = linear.StageSolver.shifted_direction
+
+    def counted(self, r):
+        shifts.append(1)
+        return original(self, r)
+
+    monkeypatch.setattr(linear.StageSolver, "shifted_direction", counted)
     before = s.counters.snapshot()
     new = method.step(s, state, 0.01)
     work = s.counters.since(before)
-    assert work["n_factor"] > work["n_iter"]  # indefinite matrices were factored again, shifted
+    assert shifts  # indefinite Newton matrices: the shifted (definite) fallback was taken
+    assert work["n_factor"] > len(shifts)  # each shift is at least one more counted factorisation
     assert ie_residual(s, state.x, state.v, new.x, new.v, 0.01) < 1e-6
 
 

@@ -111,6 +111,9 @@ class LocalGlobal(Integrator):
     """
 
     family = "local_global"
+    #: the method whose step the iteration converges to (it minimises the same objective):
+    #: :mod:`mslab.derive` reads the order there
+    converges_to = "implicit_euler"
     explicit = False
     symplectic = False
     a_stable = True
