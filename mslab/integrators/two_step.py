@@ -21,11 +21,24 @@ if TYPE_CHECKING:
     from mslab.system import System
 
 
-def _eye_stack(shape: tuple[int, ...], k: int) -> np.ndarray:
-    return np.broadcast_to(np.eye(k), shape + (k, k)).copy()
+class _SplittingForm(Integrator):
+    """What Verlet and leapfrog share: the splitting they equal and a compiled loop of their own."""
+
+    symplectic = True
+    n_start = 1
+    #: the compiled loop of :mod:`mslab.fast` that steps this form
+    loop: str = ""
+
+    def __init__(self, name: str, order: int, splitting: Integrator):
+        self.name, self.order, self.splitting = name, order, splitting
+
+    @property
+    def compiled(self) -> tuple[str, tuple]:
+        """Return the compiled loop of this form (it needs no coefficient arrays)."""
+        return self.loop, ()
 
 
-class Verlet(Integrator):
+class Verlet(_SplittingForm):
     """Position (Störmer) Verlet, seed eqs. 21-23.
 
     ``x_{n+1} = 2 x_n - x_{n-1} + h^2 a(x_n, v_n)``
@@ -41,16 +54,7 @@ class Verlet(Integrator):
     """
 
     family = "two_step"
-    symplectic = True
-    n_start = 1
-
-    def __init__(self, name: str, order: int, splitting: Integrator):
-        self.name, self.order, self.splitting = name, order, splitting
-
-    @property
-    def compiled(self) -> tuple[str, tuple]:
-        """The compiled Verlet loop."""
-        return "verlet", ()
+    loop = "verlet"
 
     def start(self, system: System, state: State, dt: float) -> State:
         """``x_{-1}`` from the backward Taylor series."""
@@ -79,7 +83,7 @@ class Verlet(Integrator):
         return M
 
 
-class Leapfrog(Integrator):
+class Leapfrog(_SplittingForm):
     """Leapfrog with staggered velocities at half steps, seed eqs. 24-26.
 
     ``x_{n+1} = x_n + h v_{n+1/2}``,  ``v_{n+3/2} = v_{n+1/2} + h a(x_{n+1}, v_{n+1})``
@@ -94,16 +98,7 @@ class Leapfrog(Integrator):
     """
 
     family = "staggered"
-    symplectic = True
-    n_start = 1
-
-    def __init__(self, name: str, order: int, splitting: Integrator):
-        self.name, self.order, self.splitting = name, order, splitting
-
-    @property
-    def compiled(self) -> tuple[str, tuple]:
-        """The compiled leapfrog loop."""
-        return "leapfrog", ()
+    loop = "leapfrog"
 
     def start(self, system: System, state: State, dt: float) -> State:
         """Take the half Euler step to ``v_{1/2}``."""
