@@ -219,6 +219,8 @@ class ImplicitRK(_RungeKutta):
         self.linearised = solver == "linearised"
         self.symplectic = symplectic
         self.diagonally_implicit = not np.any(np.triu(self.A, 1))
+        #: ``b`` is the last row of ``A``: the new state is the last stage
+        self.stiffly_accurate = bool(np.array_equal(self.b, self.A[-1]))
         if self.linearised and not self.diagonally_implicit:
             raise ValueError("solver 'linearised' (one Newton step per stage) needs a diagonally "
                              "implicit tableau")
@@ -242,7 +244,7 @@ class ImplicitRK(_RungeKutta):
             vs, accs, powers = solvers.fixed_point_stages(self, system, state, dt)
         else:
             vs, accs, powers = solvers.newton_stages(self, system, state, dt)
-        if np.array_equal(self.b, self.A[-1]):  # stiffly accurate: the new state is the last stage
+        if self.stiffly_accurate:  # the new state is the last stage
             X = state.x + dt * sum(a * v for a, v in zip(self.A[-1], vs, strict=True) if a != 0.0)
             work = dt * float(self.b @ np.asarray(powers))
             return State(X, vs[-1], (), state.dissipated + work)
