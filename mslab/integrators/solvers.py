@@ -49,6 +49,25 @@ def _scale(*arrays: np.ndarray) -> float:
     return 1.0 + max(float(np.max(np.abs(a))) if a.size else 0.0 for a in arrays)
 
 
+def _backtrack(residual: Callable, u: np.ndarray, du: np.ndarray, r: np.ndarray,
+               full_steps: bool) -> tuple[float, np.ndarray, tuple]:
+    """Halve the Newton step until the residual's norm falls (at most to 1/64 of it).
+
+    During the first ``full_steps`` iterations the full step is taken: stiff springs need
+    them (the residual may grow before it falls quadratically); after that the iterates
+    may be cycling around a kink of the force (a contact switching on and off).
+    Returns ``(alpha, residual, point)`` at ``u + alpha du``.
+    """
+    norm = float(np.linalg.norm(r))
+    alpha = 1.0
+    while True:
+        trial, trial_point = residual(u + alpha * du)
+        if (full_steps or alpha <= 1.0 / 64 or not np.isfinite(norm)
+                or float(np.linalg.norm(trial)) < norm):
+            return alpha, trial, trial_point
+        alpha *= 0.5
+
+
 def _newton(system: System, u0: np.ndarray, residual: Callable, solve: Callable, tol: float, max_iter: int,
             full_steps: int):
     """Newton's iteration ``u <- u + alpha du`` with ``J du = -r``.
@@ -69,14 +88,7 @@ def _newton(system: System, u0: np.ndarray, residual: Callable, solve: Callable,
         du, floor = solve(point, r)
         c.n_solve += 1
         tol = max(tol, floor)
-        norm = float(np.linalg.norm(r))
-        alpha = 1.0
-        while True:
-            trial, trial_point = residual(u + alpha * du)
-            if (it <= full_steps or alpha <= 1.0 / 64 or not np.isfinite(norm)
-                    or float(np.linalg.norm(trial)) < norm):
-                break
-            alpha *= 0.5
+        alpha, trial, trial_point = _backtrack(residual, u, du, r, full_steps=it <= full_steps)
         u = u + alpha * du
         r, point = trial, trial_point
     c.n_iter += it
@@ -227,14 +239,7 @@ def newton_stage(system: System, xh: np.ndarray, vh: np.ndarray, c: float, tol: 
                         f"{it} (residual {rnorm:.2e}, tolerance {max(tol, floor):.2e}); try a smaller dt")
             value = trial_value
         else:
-            alpha = 1.0
-            norm = float(np.linalg.norm(r))
-            while True:
-                trial, trial_point = residual(V + alpha * du)
-                if (it <= full_steps or alpha <= 1.0 / 64 or not np.isfinite(norm)
-                        or float(np.linalg.norm(trial)) < norm):
-                    break
-                alpha *= 0.5
+            alpha, trial, trial_point = _backtrack(residual, V, du, r, full_steps=it <= full_steps)
             tnorm = float(np.max(np.abs(trial)))
         solver.contracted(tnorm / rnorm if alpha == 1.0 and rnorm > 0 else np.inf)
         V = V + alpha * du
