@@ -131,16 +131,26 @@ class System:
         """
         import scipy.sparse as sp
 
-        self.counters.n_jac += 1
+        stiff, damp = self.jacobian_terms(x, v)
         size = self.n_particles * self.dim
-        stiff = damp = None
+        K = sum(stiff[1:], stiff[0]) if stiff else sp.csr_matrix((size, size))
+        return K, (sum(damp[1:], damp[0]) if damp else None)
+
+    def jacobian_terms(self, x: np.ndarray, v: np.ndarray) -> tuple[list, list]:
+        """Each effect's ``df/dx`` and ``df/dv`` (CSR), unsummed: two lists, absent terms left out.
+
+        Newton's linear solver sums them into its own kept pattern
+        (:mod:`mslab.integrators.newton_matrix`). Counts one n_jac.
+        """
+        self.counters.n_jac += 1
+        stiff, damp = [], []
         for e in self.effects:
             kx, kv = e.jacobians(x, v)
             if kx is not None:
-                stiff = kx if stiff is None else stiff + kx
+                stiff.append(kx.tocsr())
             if kv is not None:
-                damp = kv if damp is None else damp + kv
-        return (sp.csr_matrix((size, size)) if stiff is None else stiff), damp
+                damp.append(kv.tocsr())
+        return stiff, damp
 
     @property
     def inv_mass_diag(self) -> sp.dia_matrix:

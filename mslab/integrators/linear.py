@@ -15,7 +15,9 @@ minimisation.
 (Cholesky, else LU). Above, CHOLMOD's supernodal sparse Cholesky through cvxopt (a
 maintained binding with wheels; scikit-sparse has none for this Python here), about 10x
 faster than SuperLU on a 100 x 100 cloth's matrix; it fails on a matrix that is not
-positive definite. Then (or without cvxopt) SuperLU in *symmetric mode*: a minimum-degree
+positive definite. Newton's matrices are assembled on a sparsity pattern kept between
+iterations and steps (:mod:`mslab.integrators.newton_matrix`), and CHOLMOD's symbolic
+analysis of that pattern is done once: every later factorisation is numeric only. Then (or without cvxopt) SuperLU in *symmetric mode*: a minimum-degree
 ordering of ``A + A^T`` applied to rows and columns alike and no row pivoting
 (``diag_pivot_thresh = 0``). That is an ``L D L^T`` factorisation written as ``L U``: the
 signs of ``U``'s diagonal are the inertia of ``A`` (Sylvester's law), so the factorisation
@@ -44,9 +46,11 @@ from __future__ import annotations
 
 import time
 import weakref
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+from mslab.integrators.newton_matrix import FreePattern, cholmod_module, cholmod_solve, one_shot_pattern
 
 if TYPE_CHECKING:  # scipy is imported on first use: `import mslab` stays cheap
     import scipy.sparse as sp
@@ -60,11 +64,13 @@ DENSE_MAX = 300
 #: reuse policies: "fresh" factors every Newton matrix (the textbook method), "reuse" keeps
 #: factorisations (see StageSolver), "auto" reuses above DENSE_MAX unknowns only
 POLICIES = ("auto", "fresh", "reuse")
-#: The cost of a factorisation in solves with its factors, for the choice between a
-#: modified Newton step, CG and a fresh factorisation (measured 20-50 on this machine's
-#: cloths: 12 x 12, 1.5 ms vs 0.03 ms; 100 x 100, about 0.2 s vs 0.01 s). A fixed ratio,
-#: not a timing: the same run always takes the same steps, counts and results.
-FACTOR_OVER_SOLVE = 25.0
+#: The cost of a factorisation (with the Newton matrix's assembly) in solves with its factors,
+#: for the choice between a modified Newton step, CG and a fresh factorisation. Measured on
+#: this machine's 100 x 100 cloth with the symbolic analysis kept: CHOLMOD's numeric
+#: factorisation 0.10-0.15 s, assembly 0.02-0.03 s, a solve 0.010-0.013 s (benchmarks/RESULTS.md);
+#: smaller cloths have larger ratios but cost little either way. A fixed ratio, not a
+#: timing: the same run always takes the same steps, counts and results.
+FACTOR_OVER_SOLVE = 12.0
 
 
 class Factor:
@@ -83,8 +89,10 @@ class Factor:
         ``"lu_pivoted"``.
     """
 
-    def __init__(self, A: sp.spmatrix | np.ndarray, counters: Counters, definite_only: bool = False):
+    def __init__(self, A: sp.spmatrix | np.ndarray, counters: Counters, definite_only: bool = False,
+                 pattern: FreePattern | None = None):
         start = time.perf_counter()
+        self.pattern = pattern  # A's kept pattern (A is then pattern.matrix(data)), or None
         self._build(A, counters, definite_only)
         self.seconds = time.perf_counter() - start  # wall time of the factorisation
 
@@ -97,7 +105,7 @@ class Factor:
         self.A = A
         self.n_negative = -1
         n = A.shape[0]
-        symmetric = _symmetric(A)
+        symmetric = self.pattern.symmetric(A.data) if self.pattern is not None else _symmetric(A)
         if n <= DENSE_MAX:
             dense = A.toarray() if sp.issparse(A) else np.asarray(A)
             if not symmetric:  # friction: D = df/dv is not symmetric, Cholesky would read half of A
@@ -111,17 +119,16 @@ class Factor:
                 self._lu = sla.lu_factor(dense, check_finite=False)
                 self.kind, self.definite = "lu", False
             return
-        A = A.tocsc()
-        self.A = A
         if not symmetric:
-            self._splu = spla.splu(A)  # partial pivoting: the only sound choice for a nonsymmetric A
+            self._splu = spla.splu(A.tocsc())  # partial pivoting: the only sound choice for a nonsymmetric A
             self.kind, self.definite = "lu_pivoted", False
             return
-        if cholmod_factor(self, A):
+        if self._cholmod(A):
             return
-        if definite_only and _cholmod() is not None:  # the caller shifts A instead
+        if definite_only and cholmod_module() is not None:  # the caller shifts A instead
             self.kind, self.definite = "none", False
             return
+        A = A.tocsc()
         try:
             lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                            options={"SymmetricMode": True})
@@ -137,6 +144,24 @@ class Factor:
         counters.n_factor += 1
         self._splu = spla.splu(A)  # partial pivoting: the fallback for indefinite matrices
         self.kind, self.definite = "lu_pivoted", False
+
+    def _cholmod(self, A: sp.spmatrix) -> bool:
+        """Factor ``A`` by CHOLMOD on its kept pattern (symbolic analysis reused); False if not definite.
+
+        Also False when cvxopt is not installed (SuperLU takes over).
+        """
+        if cholmod_module() is None:
+            return False
+        if self.pattern is None:  # a matrix met once: its own pattern
+            self._own_pattern, data = one_shot_pattern(A)
+            F = self._own_pattern.cholmod(self, data)
+        else:
+            F = self.pattern.cholmod(self, A.data)
+        if F is None:
+            return False
+        self._chol = F
+        self.kind, self.definite, self.n_negative = "cholmod", True, 0
+        return True
 
     def _accurate(self) -> bool:
         """Check that the unpivoted factors solve ``A`` to a relative 1e-8 (on a random right side)."""
@@ -157,6 +182,8 @@ class Factor:
         import scipy.linalg as sla
 
         if self.kind == "cholmod":
+            if (self.pattern or self._own_pattern).owner is not self:
+                raise RuntimeError("this CHOLMOD factorisation was overwritten by a later one on its pattern")
             return cholmod_solve(self._chol, b)
         if self.kind == "cholesky":
             return sla.cho_solve(self._cho, b, check_finite=False)
@@ -173,55 +200,6 @@ def _symmetric(A: sp.spmatrix | np.ndarray) -> bool:
     size = abs(A).max() if sp.issparse(A) else np.abs(A).max()
     worst = abs(diff).max() if sp.issparse(diff) else np.abs(diff).max()
     return bool(worst <= 1e-12 * max(float(size), 1e-300))
-
-
-def _cholmod():
-    try:
-        import cvxopt
-        import cvxopt.cholmod
-    except ImportError:  # scipy only: SuperLU in symmetric mode
-        return None
-    return cvxopt
-
-
-def cholmod_factor(factor: Factor, A: sp.csc_matrix) -> bool:
-    """Factor ``A`` (CSC, symmetric) by CHOLMOD (through cvxopt) into ``factor``.
-
-    Return False when CHOLMOD is not installed or ``A`` is not positive definite (then
-    SuperLU takes over).
-
-    Each factorisation runs CHOLMOD's symbolic analysis (fill-reducing ordering,
-    supernodes) and its numeric Cholesky; cvxopt's factor object holds both, so a kept
-    factorisation owns its own.
-    """
-    cvxopt = _cholmod()
-    if cvxopt is None:
-        return False
-    import scipy.sparse as sp
-
-    lower = sp.tril(A, format="csc")
-    lower.sort_indices()
-    cols = np.repeat(np.arange(lower.shape[1]), np.diff(lower.indptr))
-    C = cvxopt.spmatrix(cvxopt.matrix(lower.data), cvxopt.matrix(lower.indices.astype(np.int64)),
-                        cvxopt.matrix(cols.astype(np.int64)), lower.shape)
-    F = cvxopt.cholmod.symbolic(C, uplo="L")
-    try:
-        cvxopt.cholmod.numeric(C, F)
-    except ArithmeticError:  # not positive definite
-        return False
-    factor._chol = F
-    factor.kind, factor.definite, factor.n_negative = "cholmod", True, 0
-    return True
-
-
-def cholmod_solve(F: Any, b: np.ndarray) -> np.ndarray:
-    """``A^-1 b`` with CHOLMOD's factors (``b`` of shape (n,) or (n, k))."""
-    import cvxopt
-    import cvxopt.cholmod
-
-    B = cvxopt.matrix(np.asfortranarray(b, dtype=float).reshape(b.shape[0], -1))
-    cvxopt.cholmod.solve(F, B)
-    return np.array(B).reshape(b.shape)
 
 
 def pcg(A: sp.spmatrix, b: np.ndarray, precond: Factor, rtol: float,
@@ -296,6 +274,8 @@ class StageSolver:
         self.c = float(c)
         self.free = np.repeat(~system.pinned, system.dim)
         self.mass_dofs = np.repeat(system.mass, system.dim)
+        self.inv_mass_dofs = np.repeat(system.inv_mass, system.dim)
+        self.pattern: FreePattern | None = None  # of the last Newton matrix
         n_free = int(np.count_nonzero(self.free))
         self.reuse = policy == "reuse" or (policy == "auto" and n_free > DENSE_MAX)
         self.factor: Factor | None = None
@@ -307,13 +287,22 @@ class StageSolver:
         self.mu = 4.0  # four times the next shift to try when A is indefinite
 
     def _assemble(self, point: tuple, r: np.ndarray):
-        X, V = point[0], point[1]
-        K, D = self.system.jacobians(X, V)
-        lin = K * self.c if D is None else K * self.c + D
-        minv = np.repeat(self.system.inv_mass, self.system.dim)
-        row = np.asarray(abs(lin).sum(axis=1)).ravel() * minv * self.c
+        """Return ``A`` at ``point`` on the kept pattern (recorded again when the Jacobians' changes)."""
+        stiff, damp = self.system.jacobian_terms(point[0], point[1])
+        parts = stiff + damp
+        if not parts:  # no force depends on the state: A = M
+            import scipy.sparse as sp
+
+            parts = [sp.csr_matrix((self.free.size, self.free.size))]
+        if self.pattern is None or not self.pattern.matches(parts):
+            self.pattern = FreePattern(parts, self.free)
+        c = self.c
+        lin = np.concatenate([p.data * (c * c) for p in stiff] + [p.data * c for p in damp]
+                             + ([] if stiff or damp else [parts[0].data]))
+        # row sums of |c M^-1 (c K + D)|: the round-off floor of Newton's tolerance
+        row = np.bincount(self.pattern.rows_in, np.abs(lin), self.free.size) * self.inv_mass_dofs
         self.row_sum = float(row.max()) if row.size else 0.0
-        return newton_matrix(K, D, self.mass_dofs, self.free, self.c)
+        return self.pattern.assemble(lin, self.mass_dofs[self.free])
 
     def cg_max_iter(self) -> int:
         """Return the CG iterations worth half a fresh factorisation (:data:`FACTOR_OVER_SOLVE`)."""
@@ -368,7 +357,7 @@ class StageSolver:
             if x is not None:
                 self.last = "cg"
                 return self.expand(x, r)
-        self.factor = Factor(A, c, definite_only)
+        self.factor = Factor(A, c, definite_only, pattern=self.pattern)
         self.factor.stage = self.stage
         self.last = "factor"
         if self.factor.kind == "none":
@@ -382,13 +371,20 @@ class StageSolver:
         multiplied by 4 until the shifted matrix is positive definite; each try is one counted
         factorisation (by CHOLMOD when installed: an indefinite ``A`` costs no SuperLU then).
         """
-        A = self.factor.A
-        import scipy.sparse as sp
-
-        M = sp.diags(self.mass_dofs[self.free]).tocsc()
+        f = self.factor
+        mass = self.mass_dofs[self.free]
         mu = self.mu / 4.0
         for _ in range(40):
-            shifted = Factor((A + mu * M).tocsc(), self.system.counters, definite_only=True)
+            if f.pattern is not None:
+                data = f.A.data.copy()
+                data[f.pattern.diagonal] += mu * mass
+                shifted = Factor(f.pattern.matrix(data), self.system.counters, definite_only=True,
+                                 pattern=f.pattern)
+            else:
+                import scipy.sparse as sp
+
+                shifted = Factor((f.A + mu * sp.diags(mass)).tocsc(), self.system.counters,
+                                 definite_only=True)
             if shifted.definite:
                 shifted.stage = self.stage
                 self.factor, self.mu = shifted, mu  # a definite preconditioner for later CG
