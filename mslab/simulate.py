@@ -213,8 +213,9 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
             per_step = (system.counters.n_force - c0["n_force"]) // max(step - done, 1)
             for i in range(k_done, k):
                 part = (saved[i] - done) / max(step - done, 1)
-                marks[i] = (t0 + part * (t1 - t0),
-                            {**c0, "n_force": c0["n_force"] + per_step * int(saved[i] - done)})
+                marks[i] = (t0 + part * (t1 - t0),  # only n_force changes within a compiled loop's chunk;
+                            {**system.counters.snapshot(),  # an implicit method's chunk is one step
+                             "n_force": c0["n_force"] + per_step * int(saved[i] - done)})
             if not ok:
                 raise FloatingPointError
             if bar is not None:

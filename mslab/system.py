@@ -81,6 +81,10 @@ class System:
     counters : Counters
     """
 
+    #: the effects' method that gives their Jacobians (the compiled view of mslab.fast.newton
+    #: names their compiled loops)
+    _jacobians = "jacobians"
+
     def __init__(self, mass: npt.ArrayLike, pinned: npt.ArrayLike, effects: Iterable[Effect], dim: int):
         self.mass = np.asarray(mass, dtype=float)
         self.pinned = np.asarray(pinned, dtype=bool)
@@ -145,7 +149,7 @@ class System:
         self.counters.n_jac += 1
         stiff, damp = [], []
         for e in self.effects:
-            kx, kv = e.jacobians(x, v)
+            kx, kv = getattr(e, self._jacobians)(x, v)
             if kx is not None:
                 stiff.append(kx.tocsr())
             if kv is not None:

@@ -135,6 +135,14 @@ class Effect:
         """``(df/dx, df/dv)``, sparse (n*dim, n*dim); None for a block that is zero."""
         raise NotImplementedError
 
+    def compiled_jacobians(self, x: np.ndarray, v: np.ndarray) -> tuple:
+        """:meth:`jacobians` for the compiled Newton path (:mod:`mslab.fast.newton`).
+
+        Default: the numpy code. An effect whose Jacobians cost enough to matter (springs)
+        overrides it with a compiled loop of the same equations (tested equal).
+        """
+        return self.jacobians(x, v)
+
     def kernel_params(self) -> tuple:
         """Trailing arguments of :attr:`kernel`: contiguous float64/int64 arrays and scalars."""
         raise NotImplementedError(f"effect '{self.name}' has no compiled kernel")

@@ -17,6 +17,8 @@ from mslab.effects.schema import Key, check_keys
 from mslab.effects.spring_table import SPRING_KINDS, SpringTable
 
 if TYPE_CHECKING:  # scipy.sparse is imported on first use: `import mslab` stays cheap
+    from collections.abc import Callable
+
     import numpy.typing as npt
     import scipy.sparse as sp
 
@@ -97,6 +99,64 @@ def spring_kernel(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j:
             f[a, c] += fc
             f[b, c] -= fc
     return power
+
+
+def spring_jacobian_kernel(x: np.ndarray, v: np.ndarray, i: np.ndarray, j: np.ndarray,
+                           stiffness: np.ndarray, rest_length: np.ndarray, damping: np.ndarray,
+                           damped: int, bx: np.ndarray, bv: np.ndarray) -> None:
+    """Fill the blocks ``bx[q] = df_i/dx_i`` and (``damped``) ``bv[q] = df_i/dv_i`` of every spring.
+
+    The equations of :meth:`Springs.jacobians` (class docstring) as a loop, for the
+    compiled Newton path (:mod:`mslab.fast.newton`); ``bx``, ``bv`` have shape (m, dim, dim).
+    """
+    dim = x.shape[1]
+    u = np.empty(dim)
+    dv = np.empty(dim)
+    pdv = np.empty(dim)
+    for q in range(i.shape[0]):
+        a = i[q]
+        b = j[q]
+        length2 = 0.0
+        for c in range(dim):
+            u[c] = x[a, c] - x[b, c]
+            length2 += u[c] * u[c]
+        length = np.sqrt(length2)
+        inv_l = 1.0 / length if length > 0.0 else 0.0
+        for c in range(dim):
+            u[c] *= inv_l
+        ratio = rest_length[q] * inv_l
+        k = stiffness[q]
+        rate = 0.0
+        if damped:
+            for c in range(dim):
+                dv[c] = v[a, c] - v[b, c]
+                rate += u[c] * dv[c]
+            for c in range(dim):  # P_u dv = dv - u (u . dv)
+                pdv[c] = dv[c] - u[c] * rate
+        cl = damping[q] * inv_l
+        for r in range(dim):
+            for c in range(dim):
+                uu = u[r] * u[c]
+                proj = (1.0 if r == c else 0.0) - uu
+                val = -k * (uu + (1.0 - ratio) * proj)
+                if damped:
+                    val -= cl * (u[r] * pdv[c] + rate * proj)
+                    bv[q, r, c] = -damping[q] * uu
+                bx[q, r, c] = val
+
+
+def scatter_pair_blocks(blocks: np.ndarray, slot: np.ndarray, out: np.ndarray) -> None:
+    """Add ``+B`` at (i, i), (j, j) and ``-B`` at (i, j), (j, i) into ``out`` (CSR data) at ``slot``.
+
+    The order of :meth:`Springs._assemble`'s ``np.bincount`` (same sums, same order).
+    """
+    flat = blocks.ravel()
+    m = flat.shape[0]
+    for part in range(4):
+        sign = 1.0 if part < 2 else -1.0
+        base = part * m
+        for e in range(m):
+            out[slot[base + e]] += sign * flat[e]
 
 
 @register
@@ -230,7 +290,21 @@ class Springs(Effect):
             dfdv = self._assemble(-self.damping[:, None, None] * uu)
         return self._assemble(bx), dfdv
 
-    def _assemble(self, blocks: np.ndarray) -> sp.csr_matrix:
+    def compiled_jacobians(self, x: np.ndarray, v: np.ndarray) -> tuple[sp.csr_matrix, sp.csr_matrix | None]:
+        """:meth:`jacobians` through :func:`spring_jacobian_kernel` (compiled by numba on first use)."""
+        from mslab.fast.jit import compiled
+
+        dim = x.shape[1]
+        m = self.i.shape[0]
+        bx = np.empty((m, dim, dim))
+        bv = np.empty((m, dim, dim) if self.dissipative else (0, dim, dim))
+        x, v = np.ascontiguousarray(x, dtype=float), np.ascontiguousarray(v, dtype=float)
+        compiled(spring_jacobian_kernel)(x, v, self.i, self.j, self.stiffness, self.rest_length, self.damping,
+                                         int(self.dissipative), bx, bv)
+        return (self._assemble(bx, compiled(scatter_pair_blocks)),
+                self._assemble(bv, compiled(scatter_pair_blocks)) if self.dissipative else None)
+
+    def _assemble(self, blocks: np.ndarray, scatter: Callable | None = None) -> sp.csr_matrix:
         """Assemble like ``mslab.effects.base.pair_blocks(blocks, i, j, n)``, into a CSR pattern reused.
 
         The sparsity pattern of a spring Jacobian never changes, so the sorting of a
@@ -244,8 +318,12 @@ class Springs(Effect):
             self._csr = (dim,) + self._pattern(dim)
         _, slot, indices, indptr = self._csr
         size = self.n * dim
-        b = blocks.ravel()
-        data = np.bincount(slot, weights=np.concatenate([b, b, -b, -b]), minlength=indices.size)
+        if scatter is None:
+            b = blocks.ravel()
+            data = np.bincount(slot, weights=np.concatenate([b, b, -b, -b]), minlength=indices.size)
+        else:  # the compiled loop of the same sums
+            data = np.zeros(indices.size)
+            scatter(blocks, slot, data)
         return sp.csr_matrix((data, indices, indptr), shape=(size, size))
 
     def _pattern(self, dim: int):

@@ -17,7 +17,8 @@ maintained binding with wheels; scikit-sparse has none for this Python here), ab
 faster than SuperLU on a 100 x 100 cloth's matrix; it fails on a matrix that is not
 positive definite. Newton's matrices are assembled on a sparsity pattern kept between
 iterations and steps (:mod:`mslab.integrators.newton_matrix`), and CHOLMOD's symbolic
-analysis of that pattern is done once: every later factorisation is numeric only. Then (or without cvxopt) SuperLU in *symmetric mode*: a minimum-degree
+analysis of that pattern is done once: every later factorisation is numeric only.
+Then (or without cvxopt) SuperLU in *symmetric mode*: a minimum-degree
 ordering of ``A + A^T`` applied to rows and columns alike and no row pivoting
 (``diag_pivot_thresh = 0``). That is an ``L D L^T`` factorisation written as ``L U``: the
 signs of ``U``'s diagonal are the inertia of ``A`` (Sylvester's law), so the factorisation
@@ -299,7 +300,8 @@ class StageSolver:
         c = self.c
         lin = np.concatenate([p.data * (c * c) for p in stiff] + [p.data * c for p in damp]
                              + ([] if stiff or damp else [parts[0].data]))
-        # row sums of |c M^-1 (c K + D)|: the round-off floor of Newton's tolerance
+        # row sums of the terms' |c M^-1 (c K_e + D_e)| (a bound on the round-off of the residual):
+        # the floor of Newton's tolerance
         row = np.bincount(self.pattern.rows_in, np.abs(lin), self.free.size) * self.inv_mass_dofs
         self.row_sum = float(row.max()) if row.size else 0.0
         return self.pattern.assemble(lin, self.mass_dofs[self.free])

@@ -97,6 +97,7 @@ class FreePattern:
         ``lin_data``: the concatenated values of the (scaled) terms, in the order of ``parts``.
         """
         data = np.bincount(self.slot, weights=-lin_data[self.source], minlength=self.indices.size)
+        data = data.astype(float, copy=False)  # (no weights at all: bincount gives integers)
         data[self.diagonal] += mass_free
         return self.matrix(data)
 
@@ -154,4 +155,4 @@ def one_shot_pattern(A: sp.spmatrix) -> tuple[FreePattern, np.ndarray]:
     lin = sp.csr_matrix(-A)
     pattern = FreePattern([lin], np.ones(A.shape[0], dtype=bool))
     data = np.bincount(pattern.slot, weights=-lin.data[pattern.source], minlength=pattern.indices.size)
-    return pattern, data
+    return pattern, data.astype(float, copy=False)

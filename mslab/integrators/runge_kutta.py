@@ -236,6 +236,11 @@ class ImplicitRK(_RungeKutta):
         left = np.abs(self.stability_function(np.outer(np.geomspace(1e-2, 1e6, 60), np.exp(1j * theta))))
         return bool(np.all(on_axis <= 1.0 + 1e-9) and np.all(left <= 1.0 + 1e-9))
 
+    @property
+    def compiled(self) -> tuple[str, tuple]:
+        """Name the compiled path: this step over compiled forces and Jacobians (:mod:`mslab.fast.newton`)."""
+        return "implicit", ()
+
     def step(self, system: System, state: State, dt: float) -> State:
         """One step: solve for the stages, then combine them with ``b``."""
         from mslab.integrators import solvers
