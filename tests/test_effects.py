@@ -309,6 +309,33 @@ def test_springs_kernel_zero_length_and_undamped():
             assert abs(p - p_ref) <= 1e-12 * max(1.0, p_ref) and (p > 0) == damped
 
 
+@pytest.mark.parametrize("friction", [0.0, 0.5])
+def test_collider_kernel_edge_cases(friction):
+    """One kernel for both colliders: a particle at the sphere's centre, on the plane, outside, at rest."""
+    numba = pytest.importorskip("numba")
+    kernel = numba.njit(cache=False)(Plane.kernel)
+    assert Sphere.kernel is Plane.kernel
+    rng = np.random.default_rng(4)
+    for dim in DIMS:
+        x, v = rng.uniform(-1, 1, size=(7, dim)), rng.normal(size=(7, dim))
+        centre = np.full(dim, 0.1)
+        x[0] = centre  # r = 0: depth = radius, normal undefined: no force (as numpy)
+        x[1] = centre + 0.999 * np.eye(dim)[0]  # just inside
+        v[2] = 0.0  # at rest: smooth friction gives 0, not NaN
+        normal = np.eye(dim)[-1]
+        x[3] = 0.05 * np.eye(dim)[0] + 0.2 * normal  # exactly on the plane n . x = 0.2: no contact
+        for effect in (Sphere(centre, 1.0, 300.0, friction=friction, slip_velocity=0.2),
+                       Plane(normal, 0.2, 500.0, friction=friction, slip_velocity=0.3)):
+            f = np.zeros_like(x)
+            p = kernel(x, v, f, *effect.kernel_params())
+            f_ref, p_ref = effect.force_and_power(x, v)
+            assert np.all(np.isfinite(f)) and np.max(np.abs(f - f_ref)) <= 1e-12 * np.max(np.abs(f_ref))
+            assert abs(p - p_ref) <= 1e-12 * max(1.0, p_ref)
+            assert p == 0.0 if friction == 0.0 else (p > 0.0 or dim == 1)  # 1D: no tangent to slide along
+            assert np.count_nonzero(f.any(axis=1)) >= 2  # some particles are in contact
+        assert np.all(f[3] == 0.0)
+
+
 def test_docs_hold_the_generated_tables():
     text = (ROOT / "docs" / "scenes.md").read_text()
     assert effect_docs.effect_tables() in text, "regenerate: python -m mslab.effects.docs docs/scenes.md"

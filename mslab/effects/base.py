@@ -139,6 +139,16 @@ class Effect:
         """Trailing arguments of :attr:`kernel`: contiguous float64/int64 arrays and scalars."""
         raise NotImplementedError(f"effect '{self.name}' has no compiled kernel")
 
+    def kernel_items(self, n_particles: int) -> int:
+        """Return how many items :attr:`kernel` loops over (the cost model of ``backend="auto"``).
+
+        Default: the length of the longest array in :meth:`kernel_params` (springs, anchors),
+        else ``n_particles``; an effect whose kernel visits every particle whatever its
+        parameters (a collider) returns ``n_particles``.
+        """
+        sizes = [len(p) for p in self.kernel_params() if isinstance(p, np.ndarray) and p.ndim >= 1]
+        return max(sizes, default=n_particles)
+
     # -- scene description -----------------------------------------------------------------------
     @classmethod
     def add(cls, builder: Any, values: dict, prefix: str = "") -> None:
