@@ -56,10 +56,19 @@ def check_effect(effect, x, v, conservative=True, rtol=1e-5, atol=1e-6):
     np.testing.assert_allclose(dense(jv, size), fd_v, rtol=rtol, atol=atol)
     f, p = effect.force_and_power(x, v)
     np.testing.assert_allclose(f, effect.force(x, v))
-    # the power an effect reports is what its non-conservative part removes: -f_diss . v >= 0
+    # the power an effect reports is what its non-conservative part removes, less what an
+    # external drive (wind) puts in: P_D - P_W = -f_nc . v, P_D >= 0
     f_cons = effect.force(x, np.zeros_like(v)) if conservative else 0.0
-    assert p == pytest.approx(-np.sum((f - f_cons) * v), rel=1e-9, abs=1e-12)
+    p_ext = effect.external_power(x, v)
+    assert p - p_ext == pytest.approx(-np.sum((f - f_cons) * v), rel=1e-9, abs=1e-12)
     assert p >= 0.0
+    # external work is the integral of external power: its rate along x + s v is P_W
+    eps = 1e-6
+    rate = (effect.external_work(x + eps * v, x) - effect.external_work(x - eps * v, x)) / (2 * eps)
+    assert rate == pytest.approx(p_ext, rel=1e-6, abs=1e-9)
+    assert effect.external_work(x, x) == 0.0
+    if not effect.driving:
+        assert p_ext == 0.0 and effect.external_work(x + v, x) == 0.0
 
 
 @pytest.fixture
@@ -261,6 +270,7 @@ def test_toml_round_trip(tmp_path, cls, dim):
     twin = loaded.system.effects[0]
     np.testing.assert_array_equal(twin.force(x, v), effect.force(x, v))
     assert twin.energy(x) == effect.energy(x) and twin.power(x, v) == effect.power(x, v)
+    assert twin.external_work(x + v, x) == effect.external_work(x + v, x)
     for a, b in zip(twin.jacobians(x, v), effect.jacobians(x, v), strict=True):
         assert (a is None) == (b is None)
         if a is not None:

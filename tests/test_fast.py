@@ -88,6 +88,7 @@ def assert_same_run(a, b, tol=1e-12):
     assert close(a.energy.kinetic, b.energy.kinetic, tol)
     assert close(a.energy.potential, b.energy.potential, tol)
     assert close(a.energy.dissipated, b.energy.dissipated, tol)
+    assert close(a.energy.external, b.energy.external, tol)
     sa, sb = a.stats.as_dict(), b.stats.as_dict()
     sa.pop("wall_time"), sb.pop("wall_time")
     assert sa == sb
