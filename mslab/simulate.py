@@ -189,9 +189,10 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
         for key, value in counted.items():
             setattr(stats, key, value - before[key])
         growth = (ks[j] + ps[j] + ds[j] - ws[j] - (ks[0] + ps[0] + ds[0])) / scale
+        ledger = "K + U + D - W_ext" if system.driving else "K + U + D"
         return InstabilityError(
             f"{integrator.name} blew up by step {step} (t = {step * dt:.6g}, dt = {dt:g}): the state "
-            f"stayed finite but the energy ledger K + U + D - W_ext grew by {growth:.3g} x the scene's "
+            f"stayed finite but the energy ledger {ledger} grew by {growth:.3g} x the scene's "
             f"energy scale{_hint(stable_dt)}", method=integrator.name, step=step, t=step * dt, dt=dt,
             stable_dt=stable_dt, trajectory=finish(j, False))
 
