@@ -7,7 +7,9 @@ Decisions (documented in the README):
   shortened last step would break the multistep methods (Verlet, leapfrog).
 * **Bounded memory.** Only every ``save_every``-th state (and the last) is kept.
 * **Energy ledger** at the saved times: kinetic K, potential U, dissipated work D
-  (integrated by the method itself), total ``K + U + D`` (constant for exact dynamics).
+  (integrated by the method itself), external work W_ext put in by drives such as a wind
+  (from the saved positions: the drive is a constant force), total ``K + U + D - W_ext``
+  (constant for exact dynamics).
 * **Counted work.** ``stats`` reports what the System counted during stepping only.
 * **No hidden clamps.** A non-finite state, or positions beyond ``blowup`` times the
   scene's size, stops the run with :class:`~mslab.errors.InstabilityError`.
@@ -92,7 +94,7 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
     blowup : float
         A position beyond ``blowup * (1 + scene size)`` counts as a blow-up.
     energy_blowup : float
-        A run whose energy ledger ``K + U + D`` grows by more than this many times the
+        A run whose energy ledger ``K + U + D - W_ext`` grows by more than this many times the
         scene's energy scale (:func:`initial_energy_scale`, from the initial state) is
         unstable too, even with bounded positions; checked over the saved samples once the
         run is through (a position blow-up stops the run first). The run is then reported
@@ -143,6 +145,7 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
         raise MemoryError(f"the {n_saved} saved samples need {2 * xs_bytes(shape) / 2**30:.3g} GiB; "
                           f"use a larger save_every or a shorter t_end") from None
     ds, ks, ps = np.empty(n_saved), np.empty(n_saved), np.empty(n_saved)
+    ws = np.zeros(n_saved)  # external work: zero unless an effect drives
     limit = blowup * (1.0 + float(np.max(np.abs(scene.state0.x))))
     stats = Stats(method=integrator.name, dt=dt)
     runner = fast.stepper(system, integrator, backend, n_steps, scene.state0)
@@ -154,6 +157,8 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
         nonlocal filled
         for i in range(filled, k):  # the effects' own energies, whichever loop stepped
             ks[i], ps[i] = system.kinetic_energy(vs[i]), system.potential_energy(xs[i])
+            if system.driving:
+                ws[i] = system.external_work(xs[i], xs[0])
         filled = max(filled, k)
 
     def grown(first: int, k: int) -> int | None:
@@ -161,7 +166,7 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
         if scale <= 0:
             return None
         energies(k)
-        growth = (ks[first:k] + ps[first:k] + ds[first:k] - (ks[0] + ps[0] + ds[0])) / scale
+        growth = (ks[first:k] + ps[first:k] + ds[first:k] - ws[first:k] - (ks[0] + ps[0] + ds[0])) / scale
         over = np.flatnonzero(~(growth <= energy_blowup))  # NaN counts as over
         return first + int(over[0]) if over.size else None
 
@@ -169,9 +174,9 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
         energies(k)
         t = saved[:k] * dt
         if k == n_saved:  # the whole run: hand the arrays over, no copy (memory budget: 1 x)
-            return Trajectory(t, xs, vs, Energy(ks, ps, ds), stats, complete, scene.name)
+            return Trajectory(t, xs, vs, Energy(ks, ps, ds, ws), stats, complete, scene.name)
         return Trajectory(t, xs[:k].copy(), vs[:k].copy(), Energy(ks[:k].copy(), ps[:k].copy(),
-                          ds[:k].copy()), stats, complete, scene.name)
+                          ds[:k].copy(), ws[:k].copy()), stats, complete, scene.name)
 
     def energy_error(j: int) -> InstabilityError:
         """Report the run as stopped at sample j, whose ledger grew.
@@ -183,10 +188,11 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
         stats.wall_time, stats.steps = seconds - start, step
         for key, value in counted.items():
             setattr(stats, key, value - before[key])
-        growth = (ks[j] + ps[j] + ds[j] - (ks[0] + ps[0] + ds[0])) / scale
+        growth = (ks[j] + ps[j] + ds[j] - ws[j] - (ks[0] + ps[0] + ds[0])) / scale
+        ledger = "K + U + D - W_ext" if system.driving else "K + U + D"
         return InstabilityError(
             f"{integrator.name} blew up by step {step} (t = {step * dt:.6g}, dt = {dt:g}): the state "
-            f"stayed finite but the energy ledger K + U + D grew by {growth:.3g} x the scene's "
+            f"stayed finite but the energy ledger {ledger} grew by {growth:.3g} x the scene's "
             f"energy scale{_hint(stable_dt)}", method=integrator.name, step=step, t=step * dt, dt=dt,
             stable_dt=stable_dt, trajectory=finish(j, False))
 
@@ -252,7 +258,7 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
     _close(stats, system, before, start, n_steps, bar if own_bar else None)
     if scale <= 0:  # nothing to compare with from the initial state: the run's own scale
         energies(k)
-        scale = Energy(ks, ps, ds).energy_scale()
+        scale = Energy(ks, ps, ds, ws).energy_scale()
     j = grown(0, k)
     if j is not None:
         raise energy_error(j)
@@ -291,7 +297,7 @@ def initial_energy_scale(scene: Scene) -> float:
 def _energy_blowup_index(energy: Energy, factor: float, scale: float) -> int | None:
     """First saved sample whose ledger total exceeds E(0) by ``factor * scale``.
 
-    The exact dynamics keeps ``K + U + D`` constant, and no method of mslab is entitled to
+    The exact dynamics keeps ``K + U + D - W_ext`` constant, and no method of mslab is entitled to
     gain energy by orders of magnitude: such a run is unstable even when its positions stay
     bounded (a saturated instability, seen with forward Euler beyond its limit).
     """

@@ -78,6 +78,8 @@ class System:
         Some effect depends on v (damping, damped springs, friction).
     dissipative : bool
         Some effect dissipates energy.
+    driving : bool
+        Some effect puts in external work (wind): the ledger's ``external`` column.
     counters : Counters
     """
 
@@ -94,6 +96,7 @@ class System:
         self.n_particles = self.mass.shape[0]
         self.velocity_dependent = any(e.velocity_dependent for e in self.effects)
         self.dissipative = any(e.dissipative for e in self.effects)
+        self.driving = any(e.driving for e in self.effects)
         self.counters = Counters()
         self._inv_mass_col = self.inv_mass[:, None]
 
@@ -176,6 +179,10 @@ class System:
     def dissipated_power(self, x: np.ndarray, v: np.ndarray) -> float:
         """Power (>= 0) removed by dissipative effects at (x, v). Not counted."""
         return float(sum(e.power(x, v) for e in self.effects if e.dissipative))
+
+    def external_work(self, x: np.ndarray, x0: np.ndarray) -> float:
+        """Work external drives (wind) put in while the particles moved from ``x0`` to ``x``. Not counted."""
+        return float(sum(e.external_work(x, x0) for e in self.effects if e.driving))
 
     def effect_names(self) -> list[str]:
         """Return the names of the scene's effects, in summation order."""

@@ -12,16 +12,39 @@ from mslab.system import Counters
 
 @dataclass
 class Energy:
-    """Energy ledger over the saved times, each an array of shape (n_saved,)."""
+    """Energy ledger over the saved times, each an array of shape (n_saved,).
+
+    Attributes
+    ----------
+    kinetic : ndarray
+        ``K = sum_i m_i |v_i|^2 / 2``.
+    potential : ndarray
+        ``U``: the potential energies of the conservative effects.
+    dissipated : ndarray
+        ``D``: work removed so far by dissipative effects (drag, spring damping, friction),
+        ``>= 0`` and non-decreasing.
+    external : ndarray
+        ``W_ext``: work done *on* the system so far by external drives (a wind), positive
+        when the drive puts energy in. Zeros when no effect drives (the default, so
+        ``Energy(K, U, D)`` still holds every older ledger).
+
+    The balance is ``K + U + D = E(0) + W_ext``: :attr:`total` ``= K + U + D - W_ext`` is
+    constant for the exact motion, damped, driven or neither.
+    """
 
     kinetic: np.ndarray
     potential: np.ndarray
     dissipated: np.ndarray
+    external: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.external is None:
+            self.external = np.zeros(np.shape(self.kinetic))
 
     @property
     def total(self) -> np.ndarray:
-        """``K + U + D``: constant for the exact solution, damped or not."""
-        return self.kinetic + self.potential + self.dissipated
+        """``K + U + D - W_ext``: constant for the exact solution, damped, driven or not."""
+        return self.kinetic + self.potential + self.dissipated - self.external
 
     def energy_scale(self) -> float:
         """Return the run's energy scale: the largest kinetic energy in the first quarter of the run.
@@ -37,7 +60,7 @@ class Energy:
         return 1.0
 
     def relative_drift(self) -> np.ndarray:
-        """``(E(t) - E(0)) / energy_scale()`` for the ledger total ``E = K + U + D``."""
+        """``(E(t) - E(0)) / energy_scale()`` for the ledger total ``E = K + U + D - W_ext``."""
         total = self.total
         return (total - total[0]) / self.energy_scale()
 

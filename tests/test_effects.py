@@ -56,10 +56,19 @@ def check_effect(effect, x, v, conservative=True, rtol=1e-5, atol=1e-6):
     np.testing.assert_allclose(dense(jv, size), fd_v, rtol=rtol, atol=atol)
     f, p = effect.force_and_power(x, v)
     np.testing.assert_allclose(f, effect.force(x, v))
-    # the power an effect reports is what its non-conservative part removes: -f_diss . v >= 0
+    # the power an effect reports is what its non-conservative part removes, less what an
+    # external drive (wind) puts in: P_D - P_W = -f_nc . v, P_D >= 0
     f_cons = effect.force(x, np.zeros_like(v)) if conservative else 0.0
-    assert p == pytest.approx(-np.sum((f - f_cons) * v), rel=1e-9, abs=1e-12)
+    p_ext = effect.external_power(x, v)
+    assert p - p_ext == pytest.approx(-np.sum((f - f_cons) * v), rel=1e-9, abs=1e-12)
     assert p >= 0.0
+    # external work is the integral of external power: its rate along x + s v is P_W
+    eps = 1e-6
+    rate = (effect.external_work(x + eps * v, x) - effect.external_work(x - eps * v, x)) / (2 * eps)
+    assert rate == pytest.approx(p_ext, rel=1e-6, abs=1e-9)
+    assert effect.external_work(x, x) == 0.0
+    if not effect.driving:
+        assert p_ext == 0.0 and effect.external_work(x + v, x) == 0.0
 
 
 @pytest.fixture
@@ -261,6 +270,7 @@ def test_toml_round_trip(tmp_path, cls, dim):
     twin = loaded.system.effects[0]
     np.testing.assert_array_equal(twin.force(x, v), effect.force(x, v))
     assert twin.energy(x) == effect.energy(x) and twin.power(x, v) == effect.power(x, v)
+    assert twin.external_work(x + v, x) == effect.external_work(x + v, x)
     for a, b in zip(twin.jacobians(x, v), effect.jacobians(x, v), strict=True):
         assert (a is None) == (b is None)
         if a is not None:
@@ -307,6 +317,33 @@ def test_springs_kernel_zero_length_and_undamped():
             f_ref, p_ref = s.force_and_power(x, v)
             assert np.all(np.isfinite(f)) and np.max(np.abs(f - f_ref)) <= 1e-12 * np.max(np.abs(f_ref))
             assert abs(p - p_ref) <= 1e-12 * max(1.0, p_ref) and (p > 0) == damped
+
+
+@pytest.mark.parametrize("friction", [0.0, 0.5])
+def test_collider_kernel_edge_cases(friction):
+    """One kernel for both colliders: a particle at the sphere's centre, on the plane, outside, at rest."""
+    numba = pytest.importorskip("numba")
+    kernel = numba.njit(cache=False)(Plane.kernel)
+    assert Sphere.kernel is Plane.kernel
+    rng = np.random.default_rng(4)
+    for dim in DIMS:
+        x, v = rng.uniform(-1, 1, size=(7, dim)), rng.normal(size=(7, dim))
+        centre = np.full(dim, 0.1)
+        x[0] = centre  # r = 0: depth = radius, normal undefined: no force (as numpy)
+        x[1] = centre + 0.999 * np.eye(dim)[0]  # just inside
+        v[2] = 0.0  # at rest: smooth friction gives 0, not NaN
+        normal = np.eye(dim)[-1]
+        x[3] = 0.05 * np.eye(dim)[0] + 0.2 * normal  # exactly on the plane n . x = 0.2: no contact
+        for effect in (Sphere(centre, 1.0, 300.0, friction=friction, slip_velocity=0.2),
+                       Plane(normal, 0.2, 500.0, friction=friction, slip_velocity=0.3)):
+            f = np.zeros_like(x)
+            p = kernel(x, v, f, *effect.kernel_params())
+            f_ref, p_ref = effect.force_and_power(x, v)
+            assert np.all(np.isfinite(f)) and np.max(np.abs(f - f_ref)) <= 1e-12 * np.max(np.abs(f_ref))
+            assert abs(p - p_ref) <= 1e-12 * max(1.0, p_ref)
+            assert p == 0.0 if friction == 0.0 else (p > 0.0 or dim == 1)  # 1D: no tangent to slide along
+            assert np.count_nonzero(f.any(axis=1)) >= 2  # some particles are in contact
+        assert np.all(f[3] == 0.0)
 
 
 def test_docs_hold_the_generated_tables():

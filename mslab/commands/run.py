@@ -160,7 +160,7 @@ def prediction_line(method: str, dt: float, predicted: float | None) -> str:
 
 
 def drift_words(drift: float, method: str) -> str:
-    """Say what a relative change of the ledger ``K + U + D`` means (it is the method's, not physics)."""
+    """Say what a relative change of the ledger ``K + U + D - W_ext`` means (the method's, not physics)."""
     if not math.isfinite(drift) or abs(drift) <= 1e-6:
         return ""
     if drift < 0:
@@ -180,6 +180,7 @@ def energy_summary(traj: Trajectory) -> dict:
         "final_kinetic": float(e.kinetic[-1]),
         "final_potential": float(e.potential[-1]),
         "final_dissipated": float(e.dissipated[-1]),
+        "final_external": float(e.external[-1]),
         "relative_drift": float(drift[-1]),
         "max_abs_relative_drift": float(np.max(np.abs(drift))),
     }
@@ -195,6 +196,7 @@ def save_npz(path: Path, traj: Trajectory, scene: Scene) -> Path:
         "kinetic": traj.energy.kinetic,
         "potential": traj.energy.potential,
         "dissipated": traj.energy.dissipated,
+        "external": traj.energy.external,
         "total": traj.energy.total,
         "complete": np.bool_(traj.complete),
         "springs": springs.springs if springs is not None else np.empty((0, 2), np.int64),
@@ -292,11 +294,14 @@ def _report(args: argparse.Namespace, scene: Scene, traj: Trajectory, predicted:
     )
     e = doc["energy"]
     if e:
+        driven = bool(e["final_external"])  # a wind: the ledger subtracts the work it put in
         say(
             args,
-            f"energy ledger K + U + D: {e['initial_total']:.6g} -> {e['final_total']:.6g} J "
+            f"energy ledger K + U + D{' - W_ext' if driven else ''}: "
+            f"{e['initial_total']:.6g} -> {e['final_total']:.6g} J "
             f"(K = {e['final_kinetic']:.4g}, U = {e['final_potential']:.4g}, "
-            f"D = {e['final_dissipated']:.4g}); "
+            f"D = {e['final_dissipated']:.4g}"
+            + (f", W_ext = {e['final_external']:.4g}" if driven else "") + "); "
             f"relative drift {e['relative_drift']:.3e}, max |drift| {e['max_abs_relative_drift']:.3e}"
             + drift_words(e["relative_drift"], s.method),
         )

@@ -13,8 +13,9 @@ from mslab.effects.gravity import Gravity, down
 from mslab.effects.registry import discover, effect_classes, get_effect, register
 from mslab.effects.schema import Key
 from mslab.effects.springs import Springs
+from mslab.effects.wind import Wind
 
 discover()
 
 __all__ = ["Anchors", "BuildContext", "Damping", "Effect", "Gravity", "Key", "PenaltyCollider", "Plane",
-           "Sphere", "Springs", "discover", "down", "effect_classes", "get_effect", "register"]
+           "Sphere", "Springs", "Wind", "discover", "down", "effect_classes", "get_effect", "register"]

@@ -6,6 +6,10 @@ An *effect* is one force term of Newton's second law (seed eq. 3), defined in on
 * ``force(x, v)`` — the force on every particle, shape ``(n_particles, dim)``;
 * ``energy(x)`` — its potential energy when it is conservative (else 0);
 * ``power(x, v)`` — the power it dissipates (>= 0) when it is dissipative (else 0);
+* ``external_work(x, x0)`` — for a *driving* effect (wind), the work its external drive has
+  put into the system while the particles moved from ``x0`` to ``x`` (``external_power(x, v)``
+  its rate), so that the energy ledger ``K + U + D - W_ext`` is constant (see
+  :class:`~mslab.trajectory.Energy`); 0 for every other effect;
 * ``jacobians(x, v)`` — ``(df/dx, df/dv)`` as ``scipy.sparse`` matrices of shape
   ``(n*dim, n*dim)`` (``None`` for a block that is identically zero), used by the
   implicit methods and by the stability analysis;
@@ -15,7 +19,7 @@ An *effect* is one force term of Newton's second law (seed eq. 3), defined in on
   ``kernel(x, v, f, *params) -> float``, that adds the force into ``f`` and returns the
   dissipated power, with :meth:`Effect.kernel_params` giving ``params``.
 
-The flags ``velocity_dependent`` and ``dissipative`` let the :class:`~mslab.system.System`
+The flags ``velocity_dependent``, ``dissipative`` and ``driving`` let the :class:`~mslab.system.System`
 skip work that no effect of the scene asks for. ``docs/extending.md`` shows a complete
 example; :mod:`mslab.effects.registry` finds the modules.
 """
@@ -112,6 +116,7 @@ class Effect:
     velocity_dependent: bool = False
     dissipative: bool = False
     conservative: bool = True
+    driving: bool = False
 
     # -- physics ---------------------------------------------------------------------------------
     def force(self, x: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -131,6 +136,23 @@ class Effect:
         """Dissipated power, >= 0 (0 unless dissipative)."""
         return 0.0
 
+    def external_power(self, x: np.ndarray, v: np.ndarray) -> float:
+        """Power put into the system by an external drive (0 unless ``driving``).
+
+        With it, ``power(x, v) - external_power(x, v)`` is the power the non-conservative
+        part of the force removes, ``-(f(x, v) - f(x, 0)) . v``.
+        """
+        return 0.0
+
+    def external_work(self, x: np.ndarray, x0: np.ndarray) -> float:
+        """Work the external drive did on particles moved from ``x0`` to ``x`` (0 unless ``driving``).
+
+        The drive must be a constant force, so that its work depends only on the end
+        points: ``d/dt external_work(x(t), x0) = external_power(x, v)``. The energy ledger
+        evaluates it at every saved state, whichever loop (numpy or compiled) stepped.
+        """
+        return 0.0
+
     def jacobians(self, x: np.ndarray, v: np.ndarray) -> tuple[sp.spmatrix | None, sp.spmatrix | None]:
         """``(df/dx, df/dv)``, sparse (n*dim, n*dim); None for a block that is zero."""
         raise NotImplementedError
@@ -146,6 +168,16 @@ class Effect:
     def kernel_params(self) -> tuple:
         """Trailing arguments of :attr:`kernel`: contiguous float64/int64 arrays and scalars."""
         raise NotImplementedError(f"effect '{self.name}' has no compiled kernel")
+
+    def kernel_items(self, n_particles: int) -> int:
+        """Return how many items :attr:`kernel` loops over (the cost model of ``backend="auto"``).
+
+        Default: the length of the longest array in :meth:`kernel_params` (springs, anchors),
+        else ``n_particles``; an effect whose kernel visits every particle whatever its
+        parameters (a collider) returns ``n_particles``.
+        """
+        sizes = [len(p) for p in self.kernel_params() if isinstance(p, np.ndarray) and p.ndim >= 1]
+        return max(sizes, default=n_particles)
 
     # -- scene description -----------------------------------------------------------------------
     @classmethod

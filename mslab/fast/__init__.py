@@ -17,7 +17,7 @@ Which path runs is the *backend*, an argument fixed when the stepper is built
   the compiled code (:func:`worth_compiling`), numpy otherwise.
 
 The compiled loop applies to a plain :class:`~mslab.system.System` whose effects all have
-kernels (springs, gravity, damping, anchors today) stepped by a method whose ``compiled``
+kernels (springs, gravity, damping, anchors, colliders today) stepped by a method whose ``compiled``
 names a loop (explicit Runge-Kutta tableaux, splittings, Verlet, leapfrog).
 """
 
@@ -76,11 +76,8 @@ NUMPY_SECONDS_PER_ITEM = 55e-9
 
 
 def _items(effect: object, n_particles: int) -> int:
-    """Return the number of items an effect's kernel loops over (its longest parameter array)."""
-    import numpy as np
-
-    sizes = [len(p) for p in effect.kernel_params() if isinstance(p, np.ndarray) and p.ndim >= 1]
-    return max(sizes, default=n_particles)
+    """Return the number of items an effect's kernel loops over (``Effect.kernel_items``)."""
+    return effect.kernel_items(n_particles)
 
 
 def worth_compiling(system: System, integrator: Integrator, n_steps: int,

@@ -16,14 +16,14 @@ if TYPE_CHECKING:
 
 def plot_energy(traj: Trajectory, ax: Axes | None = None, components: bool = True,
                 label: str | None = None) -> Axes:
-    """Plot the energy ledger of one run over time: K, U, dissipated and the total ``K + U + D``.
+    """Plot the energy ledger of one run over time: K, U, D, external work W and the total ``K + U + D - W``.
 
     Parameters
     ----------
     traj : Trajectory
     ax : matplotlib Axes, optional
     components : bool
-        Draw K, U and D as well as the total.
+        Draw K, U, D (and W_ext when a wind drives) as well as the total.
     label : str, optional
         Label of the total's line (default: the method's name).
 
@@ -38,6 +38,8 @@ def plot_energy(traj: Trajectory, ax: Axes | None = None, components: bool = Tru
         ax.plot(traj.t, e.potential, lw=1, label="potential U")
         if np.any(e.dissipated):
             ax.plot(traj.t, e.dissipated, lw=1, label="dissipated D")
+        if np.any(e.external):
+            ax.plot(traj.t, e.external, lw=1, label="external work W")
     ax.plot(traj.t, e.total, lw=2, color="k" if components else None,
             label=label or f"total ({traj.stats.method})")
     ax.set_xlabel("time t [s]")
