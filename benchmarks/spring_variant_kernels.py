@@ -137,6 +137,31 @@ def scale_parallel(x, f, i, j, stiffness, rest_length):
     return 0.0
 
 
+def scale_parallel_guarded(x, f, i, j, stiffness, rest_length):
+    """As :func:`scale_parallel`, safe for the tiniest lengths (``1 / l2`` would overflow)."""
+    for q in range(i.shape[0]):
+        a = i[q]
+        b = j[q]
+        dx = x[a, 0] - x[b, 0]
+        dy = x[a, 1] - x[b, 1]
+        dz = x[a, 2] - x[b, 2]
+        l2 = dx * dx + dy * dy + dz * dz
+        k = stiffness[q]
+        if l2 > 1e-300:
+            s = k * ((rest_length[q] * np.sqrt(l2)) * (1.0 / l2) - 1.0)
+        elif l2 > 0.0:  # 1 / l2 would overflow
+            s = k * (rest_length[q] / np.sqrt(l2) - 1.0)
+        else:
+            s = -k
+        f[a, 0] += s * dx
+        f[a, 1] += s * dy
+        f[a, 2] += s * dz
+        f[b, 0] -= s * dx
+        f[b, 1] -= s * dy
+        f[b, 2] -= s * dz
+    return 0.0
+
+
 def scale_pair(x, f, i, j, stiffness, rest_length):
     """Scale form, two springs per iteration (their arithmetic interleaved; stores in table order)."""
     m = i.shape[0]

@@ -58,6 +58,8 @@ VARIANTS = (
      np.uint32, "full"),
     ("scale form, uint32, square root and division side by side", kv.scale_parallel, NUMPY, "table",
      np.uint32, "hooke"),
+    ("scale form, uint32, side by side, guarded for l2 < 1e-300", kv.scale_parallel_guarded, {}, "table",
+     np.uint32, "hooke"),
     ("scale form, uint32, two springs per iteration", kv.scale_pair, NUMPY, "table", np.uint32, "hooke"),
     ("scale form, uint32, software-pipelined", kv.scale_pipelined, NUMPY, "table", np.uint32, "hooke"),
     ("scale form, uint32, float32 seed + 2 Newton steps for 1/l", kv.scale_newton, NUMPY, "table", np.uint32,
