@@ -12,7 +12,8 @@ What is compared, per cloth size:
   springs, gravity, two pinned corners; positions perturbed by 1 mm so every spring
   pulls), its arrays handed to Warp unchanged (int32 indices, float64 everything else);
 * the **same float64 update**, symplectic Euler: ``a = M^-1 (m g + f_springs)``,
-  ``v += h a``, ``x += h v``, in the same operations and summation order. Warp runs it as
+  ``v += h a``, ``x += h v``, in the same operations and summation order (the pair
+  force in mslab's scale form ``f_q = k (L / l - 1) d``, ``-k d`` at zero length). Warp runs it as
   two kernel launches per step (springs with atomic adds, then a fused integrate that also
   resets the force array to the weights ``m g``), the usual Warp cloth given mslab's own
   trick for constant forces; mslab runs its compiled splitting loop
@@ -26,7 +27,8 @@ What is compared, per cloth size:
   user waits; moved by other jobs); the machine, library versions and the load average
   recorded;
 * **bandwidth**: the spring kernel alone (mslab's ``spring_kernel`` as compiled by
-  ``mslab.fast``), in bytes per spring as issue 14 counts them (two int64 indices,
+  ``mslab.fast``, with the parameters it is given there: uint32 indices), in bytes per
+  spring as issue 14 counts them (two int64 indices,
   stiffness and rest length, read ``x_i, x_j``, write ``f_i, f_j``: 128 bytes), against a
   STREAM-like copy (``b[i] = a[i]`` over 2 x 128 MiB, 16 bytes per element) measured in
   the same run, interleaved (copy, then kernel, per repeat, in CPU time; the share per
@@ -93,11 +95,10 @@ def warp_stepper(wp, x0, v0, springs, gravity, inv_mass, dt: float):
         b = j[q]
         d = x[a] - x[b]
         length = wp.length(d)
-        inv_l = f64(0.0)
+        s = -k[q]
         if length > f64(0.0):
-            inv_l = f64(1.0) / length
-        lu = rest[q] * inv_l
-        fq = (-k[q]) * (d - lu * d)
+            s = k[q] * (rest[q] / length - f64(1.0))
+        fq = s * d
         wp.atomic_add(f, a, fq)
         wp.atomic_sub(f, b, fq)
 

@@ -54,7 +54,7 @@ def effect_scene(classes, dim: int, seed: int = 0):
 @pytest.mark.parametrize("dim", [1, 2, 3])
 @pytest.mark.parametrize("cls", KERNEL_EFFECTS + [None], ids=EFFECT_IDS)
 def test_composed_kernels_equal_system_rhs(cls, dim):
-    """The generated sum of the effects' kernels (int32 indices) equals System.rhs and System.force."""
+    """The generated sum of the effects' kernels (uint32 indices) equals System.rhs and System.force."""
     scene = effect_scene(KERNEL_EFFECTS if cls is None else [cls], dim)
     system = scene.system
     model = fast.ForceModel(system)
@@ -295,6 +295,22 @@ def test_constant_forces_are_summed_once():
     assert "gravity_kernel" not in names and "spring_kernel" in names and "damping_kernel" in names
     gravity = next(e for e in scene.system.effects if e.name == "gravity")
     assert np.array_equal(model.f0, gravity.force(scene.state0.x, scene.state0.v))
+
+
+def test_index_parameters_are_narrowed_without_changing_values():
+    """Non-negative indices reach the kernels as uint32 (no test for negative indices), others signed."""
+    from mslab.fast.model import _param
+
+    scene = generators.cloth(6, 6)
+    springs = next(e for e in scene.system.effects if e.name == "springs")
+    model = fast.ForceModel(scene.system)
+    i, j = model.params[[k.__name__ for k in model.kernels].index("spring_kernel")][:2]
+    assert i.dtype == j.dtype == np.uint32
+    assert np.array_equal(i, springs.i) and np.array_equal(j, springs.j)
+    signed = _param(np.array([-1, 2**31 - 1]))
+    assert signed.dtype == np.int32 and signed.tolist() == [-1, 2**31 - 1]
+    assert _param(np.array([0, 2**32 - 1])).dtype == np.uint32
+    assert _param(np.array([0, 2**32])).dtype == np.int64
 
 
 @pytest.mark.slow

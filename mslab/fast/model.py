@@ -24,12 +24,18 @@ def kernel_reason(system: System) -> str | None:
 def _param(value: object) -> object:
     """Return a kernel parameter as the compiled code wants it.
 
-    Arrays become C-contiguous; index arrays (int64) whose values fit are narrowed to int32
-    (half the memory traffic of a spring's indices); bools become ints; floats stay floats.
+    Arrays become C-contiguous; integer arrays are narrowed to 32 bits where their values
+    fit (half the memory traffic of a spring's indices): ``uint32`` when none is negative
+    (index arrays), else ``int32``, else ``int64``. Unsigned indices spare the compiled
+    code numba's test for negative indices on every access, which costs a spring loop
+    10-20 % of its time (measured, ``benchmarks/spring_variants.py``); kernels use such
+    values as indices only. Bools become ints; floats stay floats.
     """
     if isinstance(value, np.ndarray):
         if value.dtype.kind in "iu":
-            small = value.size == 0 or (int(value.min()) >= -(2**31) and int(value.max()) < 2**31)
+            if value.size == 0 or (int(value.min()) >= 0 and int(value.max()) < 2**32):
+                return np.ascontiguousarray(value, dtype=np.uint32)
+            small = int(value.min()) >= -(2**31) and int(value.max()) < 2**31
             return np.ascontiguousarray(value, dtype=np.int32 if small else np.int64)
         if value.dtype.kind == "b":
             return np.ascontiguousarray(value)
