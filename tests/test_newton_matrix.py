@@ -17,7 +17,7 @@ from mslab.fast.model import ForceModel
 from mslab.fast.newton import CompiledSystem
 from mslab.integrators import linear
 from mslab.integrators.newton_matrix import FreePattern, cholmod_module
-from mslab.scenes.generators import cloth
+from mslab.scenes.generators import chain, cloth
 
 
 def moved_cloth(n=9, drag=0.3, damping=0.0, seed=0):
@@ -156,3 +156,25 @@ def test_sparse_cloth_steps_the_same_on_both_backends(method):
     sa, sb = a.stats.as_dict(), b.stats.as_dict()
     sa.pop("wall_time"), sb.pop("wall_time")
     assert sa == sb and sa["n_factor"] < sa["n_iter"]
+
+
+def test_work_precision_times_on_the_requested_backend(monkeypatch):
+    """``work_precision(..., backend=...)`` hands the backend to the timed runs (lesson 07 relies on it)."""
+    import importlib
+
+    from mslab.precision import work_precision
+
+    simulate_module = importlib.import_module("mslab.simulate")  # the module, not the function
+
+    seen = []
+    real = simulate_module.simulate
+
+    def spy(*args, **kwargs):
+        seen.append(kwargs.get("backend"))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(simulate_module, "simulate", spy)
+    scene = chain(n=4, dim=2)
+    records = work_precision(scene, ["rk4"], [0.01], 0.1, repeats=1, budget=0.0, backend="numba")
+    assert records[0]["ok"] and np.isfinite(records[0]["wall_time"])
+    assert "numba" in seen and None in seen  # timed runs on numba, error runs on the default

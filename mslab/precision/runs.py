@@ -120,7 +120,7 @@ def _time_it(run_once: Callable[[], float], repeats: int, budget: float, warm_up
 
 
 def _time_mslab(scene: Scene, method: str, dt: float, t_end: float, repeats: int, budget: float,
-                warm_up: bool) -> float:
+                warm_up: bool, backend: str | None = None) -> float:
     from mslab.simulate import simulate
 
     steps = step_count(t_end, dt)
@@ -128,7 +128,8 @@ def _time_mslab(scene: Scene, method: str, dt: float, t_end: float, repeats: int
     def once() -> float:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", StabilityWarning)
-            return simulate(scene, method, dt, t_end, save_every=steps, progress=False).stats.wall_time
+            return simulate(scene, method, dt, t_end, save_every=steps, progress=False,
+                            backend=backend).stats.wall_time
 
     return _time_it(once, repeats, budget, warm_up)
 

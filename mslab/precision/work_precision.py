@@ -34,7 +34,7 @@ def work_precision(scene: Scene, methods: Sequence[str | Integrator],
                    scipy_methods: Sequence[str] = (), rtols: Sequence[float] = SCIPY_RTOLS,
                    atol: float | None = None,
                    timing: bool = True, repeats: int = 5, budget: float = 1.0, n_save: int = 100,
-                   jobs: int = 1, progress: bool | None = False) -> list[dict]:
+                   jobs: int = 1, progress: bool | None = False, backend: str | None = None) -> list[dict]:
     """Error, counted work and wall time of every (method, dt), plus scipy reference curves.
 
     Parameters
@@ -59,6 +59,10 @@ def work_precision(scene: Scene, methods: Sequence[str | Integrator],
         About this many saved times enter ``error_rms``.
     jobs : int
         Processes for the error runs (timing runs stay serial; see the module notes).
+    backend : {"auto", "numba", "numpy"}, optional
+        Backend of the timed runs (:func:`mslab.simulate`; None: ``$MSLAB_BACKEND`` or
+        ``"auto"``, which keeps short runs in numpy). The error runs take the default: both
+        backends give the same results to round-off and the same counts.
     progress : bool, None or object with ``update(n)``
         Progress by the clock (:mod:`mslab.progress`) naming the current run; None: on a
         terminal once the sweep has taken about 2 s, False: none, an object: the caller's.
@@ -102,7 +106,8 @@ def work_precision(scene: Scene, methods: Sequence[str | Integrator],
                     warm_up = jobs > 1 and (kind, name) not in warm
                     warm.add((kind, name))
                     if kind == "mslab":
-                        rec["wall_time"] = _time_mslab(scene, name, value, t_end, repeats, budget, warm_up)
+                        rec["wall_time"] = _time_mslab(scene, name, value, t_end, repeats, budget, warm_up,
+                                                       backend)
                     else:
                         rec["wall_time"] = _time_scipy(scene, name, value, t_end, atol, repeats, budget,
                                                        warm_up)
