@@ -8,7 +8,8 @@ Measures, in one run with the machine recorded (times are medians or sums of int
 repeats, ratios compare timings of this run):
 
 1. implicit Euler step on N x N cloths (N = 70, 100; dt = 1/60): mslab's Newton (kept
-   factorisations, symmetric free-dof matrix) against a textbook Newton written here that
+   factorisations, symmetric free-dof matrix; with numpy evaluations and on the compiled
+   view of ``backend="numba"``) against a textbook Newton written here that
    assembles ``I - h M^-1 (h K + D)`` and calls ``scipy.sparse.linalg.spsolve`` (a fresh
    SuperLU factorisation) every iteration, same tolerance; both step from the same states;
 2. a fast_mass_spring frame (h = 1/30, 10 iterations) on an 81 x 81 cloth against the same
@@ -123,26 +124,45 @@ def timed(f, *args):
 
 
 def implicit_euler_vs_reference(n: int, steps: int, warm: int = 2) -> dict:
+    """Reference Newton, mslab's step (numpy evaluations) and mslab's step on the compiled view.
+
+    All three step from the same states (mslab's numpy trajectory); the compiled view is
+    the ``backend="numba"`` path of ``simulate`` (compiled forces and Jacobians, the same
+    Newton and linear algebra).
+    """
+    from mslab.fast.model import ForceModel
+    from mslab.fast.newton import CompiledSystem
+
     scene = scaled_cloth(n)
     system, dt = scene.system, 1 / 60
+    view = CompiledSystem(system, ForceModel(system))
+    view.warm()
     ie = mslab.get_method("implicit_euler")
     state = scene.state0
-    for _ in range(warm):  # Jacobian pattern, first factorisation
+    for _ in range(warm):  # Jacobian pattern, first factorisation, on both paths
+        ie.step(view, state, dt)
         state = ie.step(system, state, dt)
-    t_ms, t_ref, diff, iters = [], [], [], []
-    before = system.counters.snapshot()
+    t_ms, t_ref, t_view, diff, diff_view, iters = [], [], [], [], [], []
+    work = {}
     for _ in range(steps):
         tr, (ref, it) = timed(reference_newton_step, system, state, dt)
+        before = system.counters.snapshot()
         tm, new = timed(ie.step, system, state, dt)
+        work = {k: work.get(k, 0) + v for k, v in system.counters.since(before).items()}
+        tv, compiled = timed(ie.step, view, state, dt)
         t_ref.append(tr)
         t_ms.append(tm)
+        t_view.append(tv)
         iters.append(it)
         diff.append(float(np.abs(ref.x - new.x).max()))
+        diff_view.append(float(np.abs(compiled.x - new.x).max()))
         state = new
-    work = system.counters.since(before)
     return {"n": n, "unknowns": 3 * int(np.count_nonzero(~system.pinned)), "steps": steps,
             "mslab_s_per_step": float(np.mean(t_ms)), "reference_s_per_step": float(np.mean(t_ref)),
-            "speedup": float(np.sum(t_ref) / np.sum(t_ms)), "max_position_difference": max(diff),
+            "compiled_s_per_step": float(np.mean(t_view)),
+            "speedup": float(np.sum(t_ref) / np.sum(t_ms)),
+            "speedup_compiled": float(np.sum(t_ref) / np.sum(t_view)),
+            "max_position_difference": max(diff), "max_difference_compiled_numpy": max(diff_view),
             "reference_iterations_per_step": float(np.mean(iters)), "mslab_work": work}
 
 
