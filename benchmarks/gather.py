@@ -4,7 +4,7 @@ Usage (from a checkout)::
 
     python benchmarks/gather.py            # 300x300 cloth, writes gather_results.json
 
-The spring kernel of mslab (``mslab/effects/springs.py``) scatters: one pass over the
+The spring kernel of mslab (``mslab/effects/spring_kernels.py``) scatters: one pass over the
 springs adds ``+f_q`` to particle ``i`` and ``-f_q`` to ``j``. It cannot run on several
 threads without atomics or colouring. The *gather* formulation loops over particles and
 sums each particle's incident springs through a CSR adjacency (no write conflicts), so

@@ -159,7 +159,7 @@ def warp_section() -> list[str]:
             "script's docstring; every figure is single-threaded.", "",
             warp_cloth.table(doc), "",
             "Notes:", "",
-            "- mslab's step is two passes: the spring kernel (`mslab/effects/springs.py`, compiled "
+            "- mslab's step is two passes: the spring kernel (`mslab/effects/spring_kernels.py`, compiled "
             "by `mslab.fast`), then one fused pass over the particles (kick, drift, blow-up test, "
             "force array reset to the constant forces). Gravity is a constant force by the effect "
             "protocol and is summed once (no pass per step); particle passes run on flat views "

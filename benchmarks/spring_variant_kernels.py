@@ -2,7 +2,7 @@
 
 Plain functions in numba style, compiled there. ``before`` is mslab's spring kernel as it
 was before issue 14's last change (``f_q = -k (d - L u)``); the library's kernel is now the
-scale form ``f_q = k (L / l - 1) d`` (``mslab.effects.springs.spring_kernel``). The others
+scale form ``f_q = k (L / l - 1) d`` (``mslab.effects.spring_kernels.spring_kernel``). The others
 take the undamped cloth's arguments ``(x, f, i, j, stiffness, rest_length)`` and compute the
 same forces, except the ``probe_*`` functions (parts of the arithmetic left out, to see what
 it costs) and ``memory_only`` (the kernel's memory accesses without its arithmetic).

@@ -33,7 +33,7 @@ sys.path.insert(0, str(HERE.parent))
 from benchmarks import spring_variant_kernels as kv  # noqa: E402
 from benchmarks.suite import machine  # noqa: E402
 from benchmarks.warp_cloth import BYTES_PER_SPRING, _copy_kernel, build_cloth  # noqa: E402
-from mslab.effects.springs import spring_kernel  # noqa: E402
+from mslab.effects.spring_kernels import spring_kernel  # noqa: E402
 
 NUMPY = {"error_model": "numpy"}
 

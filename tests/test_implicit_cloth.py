@@ -12,7 +12,7 @@ import pytest
 import mslab
 from mslab import stability
 from mslab.errors import InstabilityError
-from mslab.integrators import ImplicitRK, linear
+from mslab.integrators import ImplicitRK, linear, newton_matrix
 from mslab.integrators.local_global import LocalGlobal
 from mslab.scenes.generators import cloth
 from mslab.scenes.loader import scene_path
@@ -73,7 +73,7 @@ def test_symmetric_factor_reads_the_inertia():
     x = scene.state0.x * 0.6  # every spring compressed to 60 %
     K, D = s.jacobians(x, scene.state0.v)
     free = np.repeat(~s.pinned, 3)
-    A = linear.newton_matrix(K, D, np.repeat(s.mass, 3), free, 1 / 30)
+    A = newton_matrix.newton_matrix(K, D, np.repeat(s.mass, 3), free, 1 / 30)
     negative = int(np.count_nonzero(np.linalg.eigvalsh(A.toarray()) < 0))
     assert negative > 0
     old = linear.DENSE_MAX
@@ -95,7 +95,7 @@ def test_hard_compression_falls_back_and_converges(policy, monkeypatch):
     x0[:, 1] += 1e-3 * np.random.default_rng(0).standard_normal(len(x0))
     state = State(x0, np.zeros_like(x0))
     K, D = s.jacobians(x0, state.v)
-    A = linear.newton_matrix(K, D, np.repeat(s.mass, 2), np.repeat(~s.pinned, 2), 0.01)
+    A = newton_matrix.newton_matrix(K, D, np.repeat(s.mass, 2), np.repeat(~s.pinned, 2), 0.01)
     negative = int(np.count_nonzero(np.linalg.eigvalsh(A.toarray()) < 0))
     assert negative > 0 and not linear.Factor(A, s.counters).definite
     method = ImplicitRK([[1]], [1], name="ie_" + policy, order=1, linear_solver=policy)
@@ -235,16 +235,16 @@ def test_friction_makes_the_newton_matrix_nonsymmetric_and_lu_solves_it():
     The cloth falling onto a ball with friction (lesson 08) converges at dt = 10 ms with fresh
     and with kept factorisations, and the factor kind says LU.
     """
-    from mslab.integrators import linear
+    from mslab.integrators import linear, newton_matrix
 
     scene = mslab.load_scene("cloth_on_sphere")
     for policy in ("fresh", "reuse"):
         method = mslab.ImplicitRK([[1]], [1], name=f"ie_{policy}", order=1, linear_solver=policy)
         traj = mslab.simulate(scene, method, dt=1e-2, t_end=0.4)
         assert traj.complete and traj.stats.n_iter > traj.stats.steps
-    A = linear.newton_matrix(*scene.system.jacobians(traj.x[-1], traj.v[-1]),
+    A = newton_matrix.newton_matrix(*scene.system.jacobians(traj.x[-1], traj.v[-1]),
                              np.repeat(scene.system.mass, 3), np.repeat(~scene.system.pinned, 3), 1e-2)
-    assert not linear._symmetric(A)
+    assert not newton_matrix.is_symmetric(A)
     factor = linear.Factor(A, scene.system.counters)
     assert factor.kind in ("lu", "lu_pivoted")
     b = np.random.default_rng(1).standard_normal(A.shape[0])

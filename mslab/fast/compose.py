@@ -5,7 +5,7 @@ Each effect with a compiled kernel defines it once, as a plain function in its o
 effects all have kernels, :func:`module_for` writes a module that is the text of the
 template :mod:`mslab.fast.loops` followed by::
 
-    from mslab.effects.springs import spring_kernel as _py_k0
+    from mslab.effects.spring_kernels import spring_kernel as _py_k0
     _k0 = njit(cache=True)(_py_k0)
     ...
     @njit(cache=True)

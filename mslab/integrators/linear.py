@@ -51,7 +51,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mslab.integrators.newton_matrix import FreePattern, cholmod_module, cholmod_solve, one_shot_pattern
+from mslab.integrators.newton_matrix import (
+    FreePattern,
+    cholmod_module,
+    cholmod_solve,
+    is_symmetric,
+    one_shot_pattern,
+)
+from mslab.integrators.pcg import pcg
 
 if TYPE_CHECKING:  # scipy is imported on first use: `import mslab` stays cheap
     import scipy.sparse as sp
@@ -106,7 +113,7 @@ class Factor:
         self.A = A
         self.n_negative = -1
         n = A.shape[0]
-        symmetric = self.pattern.symmetric(A.data) if self.pattern is not None else _symmetric(A)
+        symmetric = self.pattern.symmetric(A.data) if self.pattern is not None else is_symmetric(A)
         if n <= DENSE_MAX:
             dense = A.toarray() if sp.issparse(A) else np.asarray(A)
             if not symmetric:  # friction: D = df/dv is not symmetric, Cholesky would read half of A
@@ -191,59 +198,6 @@ class Factor:
         if self.kind == "lu":
             return sla.lu_solve(self._lu, b, check_finite=False)
         return self._splu.solve(b)
-
-
-def _symmetric(A: sp.spmatrix | np.ndarray) -> bool:
-    """Return whether ``A`` equals its transpose to round-off (friction makes it not)."""
-    import scipy.sparse as sp
-
-    diff = A - A.T
-    size = abs(A).max() if sp.issparse(A) else np.abs(A).max()
-    worst = abs(diff).max() if sp.issparse(diff) else np.abs(diff).max()
-    return bool(worst <= 1e-12 * max(float(size), 1e-300))
-
-
-def pcg(A: sp.spmatrix, b: np.ndarray, precond: Factor, rtol: float,
-        max_iter: int) -> tuple[np.ndarray | None, int]:
-    """Conjugate gradients on ``A x = b`` preconditioned by ``precond.solve``.
-
-    Returns ``(x, iterations)``; ``x`` is None when CG does not reach ``|r| <= rtol |b|`` in
-    ``max_iter`` iterations or meets a direction of non-positive curvature (``A`` not
-    positive definite).
-    """
-    x = np.zeros_like(b)
-    r = b.copy()
-    bnorm = float(np.linalg.norm(b))
-    if bnorm == 0.0:
-        return x, 0
-    z = precond.solve(r)
-    p = z.copy()
-    rz = float(r @ z)
-    for it in range(1, max_iter + 1):
-        Ap = A @ p
-        curvature = float(p @ Ap)
-        if not curvature > 0.0:
-            return None, it
-        alpha = rz / curvature
-        x += alpha * p
-        r -= alpha * Ap
-        if float(np.linalg.norm(r)) <= rtol * bnorm:
-            return x, it
-        z = precond.solve(r)
-        rz_new = float(r @ z)
-        p = z + (rz_new / rz) * p
-        rz = rz_new
-    return None, max_iter
-
-
-def newton_matrix(K: sp.spmatrix, D: sp.spmatrix | None, mass_dofs: np.ndarray, free: np.ndarray,
-                  c: float) -> sp.csc_matrix:
-    """Return ``A = M - c^2 K - c D`` on the free dofs (CSC); ``D`` may be None."""
-    import scipy.sparse as sp
-
-    lin = K * (c * c) if D is None else K * (c * c) + D * c
-    lin = lin.tocsr()[free][:, free]
-    return (sp.diags(mass_dofs[free]) - lin).tocsc()
 
 
 class StageSolver:

@@ -156,3 +156,23 @@ def one_shot_pattern(A: sp.spmatrix) -> tuple[FreePattern, np.ndarray]:
     pattern = FreePattern([lin], np.ones(A.shape[0], dtype=bool))
     data = np.bincount(pattern.slot, weights=-lin.data[pattern.source], minlength=pattern.indices.size)
     return pattern, data.astype(float, copy=False)
+
+
+def is_symmetric(A: sp.spmatrix | np.ndarray) -> bool:
+    """Return whether ``A`` equals its transpose to round-off (friction makes it not)."""
+    import scipy.sparse as sp
+
+    diff = A - A.T
+    size = abs(A).max() if sp.issparse(A) else np.abs(A).max()
+    worst = abs(diff).max() if sp.issparse(diff) else np.abs(diff).max()
+    return bool(worst <= 1e-12 * max(float(size), 1e-300))
+
+
+def newton_matrix(K: sp.spmatrix, D: sp.spmatrix | None, mass_dofs: np.ndarray, free: np.ndarray,
+                  c: float) -> sp.csc_matrix:
+    """Return ``A = M - c^2 K - c D`` on the free dofs (CSC); ``D`` may be None."""
+    import scipy.sparse as sp
+
+    lin = K * (c * c) if D is None else K * (c * c) + D * c
+    lin = lin.tocsr()[free][:, free]
+    return (sp.diags(mass_dofs[free]) - lin).tocsc()

@@ -1,0 +1,49 @@
+"""Conjugate gradients preconditioned by a kept factorisation: the middle ground of Newton's linear solves.
+
+Used by :class:`mslab.integrators.linear.StageSolver` as an inexact Newton step: the
+current Newton matrix, preconditioned by factors of an earlier one (see that module).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
+
+    from mslab.integrators.linear import Factor
+
+
+def pcg(A: sp.spmatrix, b: np.ndarray, precond: Factor, rtol: float,
+        max_iter: int) -> tuple[np.ndarray | None, int]:
+    """Conjugate gradients on ``A x = b`` preconditioned by ``precond.solve``.
+
+    Returns ``(x, iterations)``; ``x`` is None when CG does not reach ``|r| <= rtol |b|`` in
+    ``max_iter`` iterations or meets a direction of non-positive curvature (``A`` not
+    positive definite).
+    """
+    x = np.zeros_like(b)
+    r = b.copy()
+    bnorm = float(np.linalg.norm(b))
+    if bnorm == 0.0:
+        return x, 0
+    z = precond.solve(r)
+    p = z.copy()
+    rz = float(r @ z)
+    for it in range(1, max_iter + 1):
+        Ap = A @ p
+        curvature = float(p @ Ap)
+        if not curvature > 0.0:
+            return None, it
+        alpha = rz / curvature
+        x += alpha * p
+        r -= alpha * Ap
+        if float(np.linalg.norm(r)) <= rtol * bnorm:
+            return x, it
+        z = precond.solve(r)
+        rz_new = float(r @ z)
+        p = z + (rz_new / rz) * p
+        rz = rz_new
+    return None, max_iter
