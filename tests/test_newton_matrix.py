@@ -178,3 +178,26 @@ def test_work_precision_times_on_the_requested_backend(monkeypatch):
     records = work_precision(scene, ["rk4"], [0.01], 0.1, repeats=1, budget=0.0, backend="numba")
     assert records[0]["ok"] and np.isfinite(records[0]["wall_time"])
     assert "numba" in seen and None in seen  # timed runs on numba, error runs on the default
+
+
+def test_compiled_spring_jacobians_equal_finite_differences_of_the_compiled_forces():
+    """An independent check: central differences of the compiled force kernel, column by column."""
+    rng = np.random.default_rng(7)
+    n, m, dim = 6, 12, 3
+    i = rng.integers(0, n, m)
+    j = (i + rng.integers(1, n, m)) % n
+    springs = Springs(np.stack([i, j], 1), rng.uniform(1, 10, m), rng.uniform(0.5, 1.5, m),
+                      rng.uniform(0.1, 1.0, m), n)
+    system = mslab.System(np.ones(n), np.zeros(n, dtype=bool), [springs], dim)
+    model = ForceModel(system)
+    x, v = rng.normal(size=(n, dim)), rng.normal(size=(n, dim))
+    K, D = (M.toarray() for M in springs.compiled_jacobians(x, v))
+    h = 1e-6
+    for col in range(n * dim):
+        e = np.zeros(n * dim)
+        e[col] = h
+        e = e.reshape(n, dim)
+        dfdx = (model.force(x + e, v)[0] - model.force(x - e, v)[0]).ravel() / (2 * h)
+        dfdv = (model.force(x, v + e)[0] - model.force(x, v - e)[0]).ravel() / (2 * h)
+        assert np.allclose(K[:, col], dfdx, rtol=1e-6, atol=1e-6)
+        assert np.allclose(D[:, col], dfdv, rtol=1e-6, atol=1e-6)
