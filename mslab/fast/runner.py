@@ -23,7 +23,8 @@ class Stepper:
 
     The loop is the one the method names (``Integrator.compiled``): ``"explicit_rk"`` over
     ``(A, b)``, ``"splitting"`` over ``(drift, kick)``, ``"verlet"`` or ``"leapfrog"``; for
-    ``"implicit"`` the method's own step runs on a :class:`~mslab.fast.newton.CompiledSystem`.
+    ``"implicit"`` there is no loop: ``simulate`` steps the method on :attr:`view`, a
+    :class:`~mslab.fast.newton.CompiledSystem`.
     Counts ``n_force`` on the System exactly as the numpy loop does (the loops return it).
     """
 
@@ -35,7 +36,8 @@ class Stepper:
         self.integrator = integrator
         self.model = ForceModel(system)
         self.loop, arrays = integrator.compiled
-        #: the implicit methods step in Python over compiled evaluations (mslab.fast.newton)
+        #: the implicit methods have no compiled loop: ``simulate`` steps them on this view, whose
+        #: evaluations are compiled (mslab.fast.newton); :meth:`advance` is for the other loops
         self.view = CompiledSystem(system, self.model) if self.loop == "implicit" else None
         self.arrays = tuple(np.ascontiguousarray(a, dtype=np.float64) for a in arrays)
         work = system.n_particles + sum(np.size(p[0]) for p in self.model.params if p and np.ndim(p[0]))
@@ -43,8 +45,6 @@ class Stepper:
         #: steps per compiled call: about 10^7 particle+element updates (0.1 s), so Ctrl-C and the
         #: progress bar answer within a fraction of a second
         self.chunk = int(min(self.max_chunk, max(1, 10**7 // max(1, work * integrator.n_stages))))
-        if self.view is not None:  # a step costs what it costs (Newton iterations): count each one
-            self.chunk = 1
         self._x = self._v = None
         self._mem = None
 
@@ -55,8 +55,6 @@ class Stepper:
         Fills ``xs, vs, ds`` at the indices ``saved[k:]`` reached. Returns
         ``(step, k, state, ok)``; ``ok`` is False when step ``step`` blew up.
         """
-        if self.view is not None:
-            return self._advance_implicit(state, dt, step, stop, saved, k, xs, vs, ds, limit)
         if self._x is None:
             self._x = np.array(state.x, dtype=np.float64, order="C")
             self._v = np.array(state.v, dtype=np.float64, order="C")
@@ -67,19 +65,6 @@ class Stepper:
         self.system.counters.n_force += n_force
         state = State(self._x.copy(), self._v.copy(), self._memory_tuple(), dissipated)
         return new_step, k, state, status == self.model.module.OK
-
-    def _advance_implicit(self, state: State, dt: float, step: int, stop: int, saved: np.ndarray, k: int,
-                          xs: np.ndarray, vs: np.ndarray, ds: np.ndarray,
-                          limit: float) -> tuple[int, int, State, bool]:
-        """:meth:`advance` of the implicit methods: their own step on the compiled view, step by step."""
-        for n in range(step + 1, stop + 1):
-            state = self.integrator.step(self.view, state, dt)
-            if k < saved.size and saved[k] == n:
-                xs[k], vs[k], ds[k] = state.x, state.v, state.dissipated
-                k += 1
-            if not (state.is_finite() and np.abs(state.x).max() < limit):
-                return n, k, state, False
-        return stop, k, state, True
 
     def warm(self) -> None:
         """Load (or compile) the loop now, by a call of zero steps.

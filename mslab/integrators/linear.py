@@ -249,16 +249,11 @@ class StageSolver:
     def _assemble(self, point: tuple, r: np.ndarray):
         """Return ``A`` at ``point`` on the kept pattern (recorded again when the Jacobians' changes)."""
         stiff, damp = self.system.jacobian_terms(point[0], point[1])
-        parts = stiff + damp
-        if not parts:  # no force depends on the state: A = M
-            import scipy.sparse as sp
-
-            parts = [sp.csr_matrix((self.free.size, self.free.size))]
+        parts = stiff + damp  # none: no force depends on the state, A = M
         if self.pattern is None or not self.pattern.matches(parts):
             self.pattern = FreePattern(parts, self.free)
         c = self.c
-        lin = np.concatenate([p.data * (c * c) for p in stiff] + [p.data * c for p in damp]
-                             + ([] if stiff or damp else [parts[0].data]))
+        lin = np.concatenate([np.zeros(0)] + [p.data * (c * c) for p in stiff] + [p.data * c for p in damp])
         # row sums of the terms' |c M^-1 (c K_e + D_e)| (a bound on the round-off of the residual):
         # the floor of Newton's tolerance
         row = np.bincount(self.pattern.rows_in, np.abs(lin), self.free.size) * self.inv_mass_dofs

@@ -55,8 +55,9 @@ class FreePattern:
 
         self.patterns = [(p.indptr.copy(), p.indices.copy()) for p in parts]
         n_all = free.size
-        rows = np.concatenate([np.repeat(np.arange(n_all), np.diff(p.indptr)) for p in parts])
-        cols = np.concatenate([p.indices for p in parts])
+        none = [np.zeros(0, dtype=np.int64)]  # (no terms at all: A = M)
+        rows = np.concatenate(none + [np.repeat(np.arange(n_all), np.diff(p.indptr)) for p in parts])
+        cols = np.concatenate(none + [p.indices for p in parts])
         self.rows_in = rows  # row of every entry of the concatenated terms (row sums)
         new = np.cumsum(free) - 1
         m = int(np.count_nonzero(free))
