@@ -44,10 +44,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the ``mslab`` command line on ``argv`` (default ``sys.argv[1:]``); return the exit code."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
     for line in take_broken():  # a method or effect file that failed to load: the rest works
         print(f"mslab: warning: {line} (file skipped)", file=sys.stderr)
+    parser = build_parser()
+    args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
         return 2

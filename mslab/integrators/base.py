@@ -190,7 +190,7 @@ def _check_order(method: Integrator) -> None:
 
     declared = int(method.order)
     try:
-        derived = order(method, max_order=max(declared, 1))
+        derived = order(method, max_order=declared if declared > 0 else 8)
     except ValueError as err:
         if "order >" not in str(err):
             raise ValueError(f"method {method.name!r}: {err}") from None
