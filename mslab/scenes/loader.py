@@ -48,6 +48,10 @@ def scene_path(name_or_path: str | Path) -> Path:
     if path.is_dir():
         raise SceneError("scene", f"'{text}' is a directory, not a scene file; give a .toml file inside it "
                          "or a built-in scene name", text)
+    other = _not_a_file(path)
+    if other:
+        raise SceneError("scene", f"'{text}' {other}; give a regular .toml file or a built-in scene name",
+                         text)
     close = difflib.get_close_matches(Path(text).stem, scene_names(), n=1)
     hint = f" (did you mean '{close[0]}'?)" if close else ""
     raise SceneError(
@@ -55,6 +59,27 @@ def scene_path(name_or_path: str | Path) -> Path:
         f"no built-in scene or file called '{text}'{hint}; built-in scenes: {', '.join(scene_names())}",
         text,
     )
+
+
+def _not_a_file(path: Path) -> str | None:
+    """Say what ``path`` is when it exists but is no regular file (a FIFO, a device, a symlink loop)."""
+    import os
+    import stat
+
+    try:
+        mode = os.stat(path).st_mode
+    except OSError as err:
+        if not os.path.islink(path):
+            return None
+        if err.errno == 40:  # ELOOP
+            return "is a symbolic link that leads back to itself (a loop)"
+        return f"is a symbolic link to '{os.readlink(path)}', which does not exist"
+    kinds = ((stat.S_ISFIFO, "a named pipe (FIFO)"), (stat.S_ISSOCK, "a socket"),
+             (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"))
+    for test, kind in kinds:
+        if test(mode):
+            return f"is {kind}, not a regular file (it is not read: that could wait forever)"
+    return None
 
 
 def load_scene(name_or_path: str | Path, **overrides) -> Scene:
