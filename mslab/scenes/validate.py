@@ -13,6 +13,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import replace
 
+import numpy as np
+
 from mslab.effects.schema import check_keys, integer, string
 from mslab.errors import SceneError
 from mslab.scenes.bodies import PARTICLE_KEYS, add_body
@@ -22,6 +24,10 @@ from mslab.scenes.settings import canonical, read_run
 
 #: keys of ``[scene]``
 SCENE_KEYS = ("name", "description", "dim")
+
+#: largest magnitude of a number in a scene file: a run squares and multiplies them (``k d^2 / 2``,
+#: ``k / m`` in the step-limit analysis), and 1e150 squared is still a double; SI scenes stay far below
+MAX_MAGNITUDE = 1e150
 
 
 def sections() -> tuple[str, ...]:
@@ -39,11 +45,48 @@ def scene_from_doc(doc: Mapping, source: str | None = None, default_name: str = 
         The first problem found, naming the file (``source``) and the key.
     """
     try:
-        return _build(doc, default_name, overrides or {})
+        _check_magnitudes(doc, "")
+        scene = _build(doc, default_name, overrides or {})
+        _check_initial_state(scene)
+        return scene
     except SceneError as err:
         if err.source is not None:
             raise
         raise SceneError(err.key, err.reason, source) from None
+
+
+def _check_magnitudes(value: object, key: str, where: str = "") -> None:
+    """Refuse a number beyond :data:`MAX_MAGNITUDE` (or a nan/inf), naming its key and position."""
+    if isinstance(value, Mapping):
+        for k, v in value.items():
+            _check_magnitudes(v, f"{key}.{k}" if key else str(k))
+    elif isinstance(value, list):
+        for i, v in enumerate(value):
+            if isinstance(v, Mapping):
+                _check_magnitudes(v, f"{key}[{i}]")
+            else:
+                _check_magnitudes(v, key, f"{where}[{i}]")
+    elif isinstance(value, int | float) and not isinstance(value, bool):
+        at = f" (at {where})" if where else ""
+        if value != value or abs(value) == float("inf"):
+            raise SceneError(key, f"must be a finite number, got {value!r}{at}")
+        if abs(value) > MAX_MAGNITUDE:
+            digits = len(str(abs(value))) if isinstance(value, int) else 0
+            text = f"an integer of {digits} digits" if digits > 15 else f"{value:.3g}"
+            raise SceneError(key, f"{text}{at} is beyond +-{MAX_MAGNITUDE:.0e}: a run squares such numbers "
+                             f"(energies k d^2 / 2, k / m), which overflows double precision")
+
+
+def _check_initial_state(scene: Scene) -> None:
+    """Refuse a scene whose initial forces or energies overflow (values that each fit, but not together)."""
+    system, state = scene.system, scene.state0
+    with np.errstate(all="ignore"):
+        force = system.force(state.x, state.v)
+        energy = system.kinetic_energy(state.v) + system.potential_energy(state.x)
+    if not (np.all(np.isfinite(force)) and np.isfinite(energy)):
+        what = "forces" if not np.all(np.isfinite(force)) else "energy"
+        raise SceneError("scene", f"the initial {what} overflow double precision (inf or nan): positions, "
+                         f"masses, stiffnesses or velocities too large together")
 
 
 def _build(doc: Mapping, default_name: str, overrides: Mapping) -> Scene:
