@@ -82,13 +82,16 @@ def _not_a_file(path: Path) -> str | None:
     return None
 
 
-def load_scene(name_or_path: str | Path, **overrides) -> Scene:
+def load_scene(name_or_path: str | Path, *, max_bytes: int | None = None, **overrides) -> Scene:
     """Read a scene file (built-in name or path) and build it.
 
     Parameters
     ----------
     name_or_path : str or Path
         A name from :func:`scene_names` (``"chain"``) or the path of a TOML file.
+    max_bytes : int, optional
+        Memory the scene may take to build and run (default: the machine's memory); a
+        generator making more particles is refused before they are made.
     **overrides
         Run settings replacing the file's ``[run]`` values: ``method``, ``dt``, ``t_end``,
         ``save_every`` (``None`` values are ignored).
@@ -122,4 +125,4 @@ def load_scene(name_or_path: str | Path, **overrides) -> Scene:
 
         check_settings(given, source, dt=file_value("dt", Settings.dt),
                        t_end=file_value("t_end", Settings.t_end), note=" (given as an override)")
-    return scene_from_doc(doc, source, default_name=path.stem, overrides=given)
+    return scene_from_doc(doc, source, default_name=path.stem, overrides=given, max_bytes=max_bytes)
