@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint lessons site bench clean venv
+.PHONY: demo test lint lessons site bench clean venv docs
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -19,7 +19,12 @@ venv: $(STAMP)
 demo: $(STAMP)
 	$(PY) -m mslab.demo --out out
 
-test: $(STAMP)
+# the generated pages: the effect table of docs/scenes.md, from the registered effects' schemas
+# (a new effect file needs no hand edit there; test and site regenerate it first)
+docs: $(STAMP)
+	$(PY) -m mslab.effects.docs docs/scenes.md
+
+test: $(STAMP) docs
 	$(VENV)/bin/ruff check .
 	$(PY) -m pytest -q -n 2 --dist loadfile tests
 	$(PY) -m pytest -q -p no:randomly --nbval --nbval-current-env --nbval-sanitize-with lessons/sanitize.cfg lessons/
@@ -29,7 +34,7 @@ lessons: $(STAMP)
 	$(PY) lessons/run_all.py
 
 # the course as an offline static website in site/ (local MathJax; tools/build_site.py)
-site: $(STAMP)
+site: $(STAMP) docs
 	$(PY) tools/build_site.py --out site
 
 lint: $(STAMP)
