@@ -208,6 +208,7 @@ def test_broken_effect_file_is_one_line_and_the_other_effects_work(tmp_path):
     finally:
         effects_package.__path__[:] = [p for p in effects_package.__path__ if p != str(tmp_path)]
         sys.modules.pop("mslab.effects.broken_effect", None)
+        effect_registry._imported.discard("broken_effect")
         for line in list(errors._BROKEN):
             if line.startswith(str(tmp_path)):
                 del errors._BROKEN[line]
@@ -244,3 +245,31 @@ def test_import_and_built_in_lookups_stay_cheap():
             "print(sorted(m for m in ('sympy', 'scipy', 'numba') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert out.stdout.strip() == "[]", out.stderr
+
+
+def test_an_effect_file_may_not_replace_a_built_in_effect(tmp_path):
+    (tmp_path / "my_springs.py").write_text(textwrap.dedent("""\
+        from mslab.effects.base import Effect
+        from mslab.effects.registry import register
+
+
+        @register
+        class MySprings(Effect):
+            name = "springs"
+        """))
+    effects_package.__path__.append(str(tmp_path))
+    try:
+        effect_registry.discover()
+        lines = [ln for ln in errors.broken_files() if ln.startswith(str(tmp_path))]
+        head = f"{tmp_path / 'my_springs.py'}:5: effect name 'springs' is already registered by "
+        assert len(lines) == 1 and lines[0].startswith(head)
+        assert "mslab/effects/springs.py" in lines[0]
+        with pytest.warns(errors.BrokenFileWarning):
+            assert effect_registry.get_effect("springs").__module__ == "mslab.effects.springs"
+    finally:
+        effects_package.__path__[:] = [p for p in effects_package.__path__ if p != str(tmp_path)]
+        sys.modules.pop("mslab.effects.my_springs", None)
+        effect_registry._imported.discard("my_springs")
+        for line in list(errors._BROKEN):
+            if line.startswith(str(tmp_path)):
+                del errors._BROKEN[line]

@@ -30,6 +30,10 @@ def register(cls: type[Effect]) -> type[Effect]:
         raise TypeError(f"register() takes an Effect subclass, got {cls!r}")
     if not cls.name or cls.name == Effect.name:
         raise ValueError(f"{cls.__name__}: set the class attribute 'name'")
+    old = _registry.get(cls.name)
+    if old is not None and old.__module__ != cls.__module__:
+        raise ValueError(f"effect name {cls.name!r} is already registered by {_file(old)}: choose another "
+                         f"name (built-in and other files' effects are never replaced)")
     for method in cls.builder_methods:
         if not callable(getattr(cls, method, None)):
             raise ValueError(f"{cls.__name__}: builder method '{method}' is not defined on the class")
@@ -39,6 +43,10 @@ def register(cls: type[Effect]) -> type[Effect]:
                              f"{other[0].__name__}")
     _registry[cls.name] = cls
     return cls
+
+
+def _file(cls: type) -> str:
+    return str(getattr(sys.modules.get(cls.__module__), "__file__", None) or cls.__module__)
 
 
 def discover() -> None:
@@ -77,6 +85,7 @@ def effect_classes() -> list[type[Effect]]:
 def get_effect(name: str) -> type[Effect]:
     """Return the registered effect class called ``name`` (KeyError when unknown)."""
     discover()
+    warn_broken()
     return _registry[name]
 
 
