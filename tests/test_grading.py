@@ -449,7 +449,7 @@ NO_IMPORT = "the module could not be imported"
 RAISED = "raised an exception"
 HIDDEN_PHRASE = {"empty": RAISED, "syntax_error": NO_IMPORT, "missing_function": "missing function",
                  "not_data": "answered something that is not plain data", "memory_hog": RAISED,
-                 "exit_at_import": NO_IMPORT, "hard_exit_at_import": NO_IMPORT, "edit_tests": RAISED,
+                 "exit_at_import": NO_IMPORT, "hard_exit_at_import": "the process died", "edit_tests": RAISED,
                  "import_mslab": NO_IMPORT}
 
 
