@@ -73,6 +73,7 @@ def main() -> None:
                 results = grade([cls], source=ROOT / "exercises", jobs=2, timeout=args.timeout,
                                 only=[args.exercise])
                 times[name].append(time.perf_counter() - t0)
+                print(f"{name}: {times[name][-1]:.1f} s (load {os.getloadavg()[0]:.1f})", file=sys.stderr)
                 honest = [r for r in results if not (name == "hog" and r.student == "student00")]
                 marks[name] = sum(r.total == r.max_points for r in honest), len(honest)
                 marks["resources"] = results[0].resources
