@@ -19,6 +19,7 @@ _INFRASTRUCTURE = {"base", "registry", "schema", "docs"}
 
 _registry: dict[str, type[Effect]] = {}
 _imported: set[str] = set()
+_listeners: list[Callable[[type[Effect]], None]] = []
 
 
 def register(cls: type[Effect]) -> type[Effect]:
@@ -35,7 +36,19 @@ def register(cls: type[Effect]) -> type[Effect]:
             raise ValueError(f"{cls.__name__}: builder method '{method}' is already provided by "
                              f"{other[0].__name__}")
     _registry[cls.name] = cls
+    for listener in _listeners:
+        listener(cls)
     return cls
+
+
+def on_register(listener: Callable[[type[Effect]], None]) -> None:
+    """Call ``listener(cls)`` for every effect class registered so far and every one registered later.
+
+    How a layer above (the ``SceneBuilder``) learns of an effect without the effect importing it.
+    """
+    _listeners.append(listener)
+    for cls in list(_registry.values()):
+        listener(cls)
 
 
 def discover() -> None:

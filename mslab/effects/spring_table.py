@@ -10,6 +10,7 @@ force of both (``k1 (l - L1) + k2 (l - L2) = (k1 + k2) (l - L)``).
 from __future__ import annotations
 
 import bisect
+import math
 
 import numpy as np
 
@@ -107,6 +108,36 @@ class SpringTable:
                 self.c[q] += values["damping"]
             out[s] = q
         return out
+
+    def add_one(self, i: int, j: int, stiffness: float, rest_length: float | None, damping: float,
+                kind: str, xi: list[float], xj: list[float]) -> int | None:
+        """Add one checked builder spring in O(1); None when :meth:`add` must handle it.
+
+        That is a pair joined already (an error, or a merge) or a zero length with no
+        rest length (an error): :meth:`add` raises or merges as for any batch. ``xi``, ``xj``:
+        the positions of ``i`` and ``j`` (the rest length is computed as :meth:`add` does).
+        """
+        key = (min(i, j) << 32) | max(i, j)
+        if key in self._index:
+            return None
+        if rest_length is None:  # the sum in numpy's order: sqrt((d0^2 + d1^2) + d2^2)
+            squares = 0.0
+            for a, b in zip(xi, xj, strict=True):
+                squares += (a - b) * (a - b)
+            rest_length = math.sqrt(squares)
+            if rest_length == 0.0:
+                return None
+        q = len(self.i)
+        if not self._batches or self._batches[-1][1:] != ("springs.", False, 0):
+            self._batches.append((q, "springs.", False, 0))
+        self._index[key] = q
+        self.i.append(i)
+        self.j.append(j)
+        self.k.append(stiffness)
+        self.rest.append(rest_length)
+        self.c.append(damping)
+        self.kind.append(kind)
+        return q
 
     def _first_duplicate(self, keys: np.ndarray, start: int) -> tuple[int, int] | None:
         """``(s, q)``: the first new pair ``s`` that spring ``q`` (earlier) already joins, or None."""

@@ -7,6 +7,7 @@ recorded by :mod:`mslab.effects.spring_table` (duplicates, rest lengths, labels)
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -33,6 +34,17 @@ def scatter_pairs(f: np.ndarray, i: np.ndarray, j: np.ndarray, n: int) -> np.nda
     for k in range(f.shape[1]):
         out[:, k] = np.bincount(i, f[:, k], minlength=n) - np.bincount(j, f[:, k], minlength=n)
     return out
+
+
+def _index(value: object, n: int) -> bool:
+    """``value`` is a particle index in ``0..n-1`` (as the schema's ``index`` accepts)."""
+    return isinstance(value, int | np.integer) and not isinstance(value, bool | np.bool_) and 0 <= value < n
+
+
+def _non_negative(value: object) -> bool:
+    """``value`` is a finite number >= 0 (as the schema's ``number`` with ``low=0`` accepts)."""
+    return (isinstance(value, int | float | np.integer | np.floating)
+            and not isinstance(value, bool | np.bool_) and math.isfinite(value) and value >= 0.0)
 
 
 @register
@@ -247,8 +259,20 @@ class Springs(Effect):
                    damping: float = 0.0, kind: str = "structural", duplicates: str = "error") -> int:
         """Add a spring between particles i and j; ``rest_length=None`` takes the current length.
 
-        Returns the spring's index (see :meth:`add_springs` for ``duplicates``).
+        Returns the spring's index (see :meth:`add_springs` for ``duplicates``). O(1): plain
+        values are checked here and the spring appended; anything else (a mistake, a
+        duplicate) takes the path of :meth:`add_springs`, which names it.
         """
+        n = builder.n_particles
+        if (_index(i, n) and _index(j, n) and i != j and _non_negative(stiffness) and _non_negative(damping)
+                and (rest_length is None or _non_negative(rest_length)) and isinstance(kind, str)
+                and duplicates in ("error", "merge")):
+            x = builder.positions()
+            q = Springs._table(builder).add_one(int(i), int(j), float(stiffness),
+                                                None if rest_length is None else float(rest_length),
+                                                float(damping), kind, x[i].tolist(), x[j].tolist())
+            if q is not None:
+                return q
         added = Springs.add_springs(builder, [[i, j]], stiffness, rest_length, damping, kind, duplicates)
         return int(added[0])
 
