@@ -23,7 +23,7 @@ if TYPE_CHECKING:
     import argparse
     from pathlib import Path
 
-    from mslab.scenes.builder import Scene
+    from mslab.scene import Scene
 
 #: default run length, in units of the scene's t_end: a verdict needs many oscillations
 LONG_RUN = 10

@@ -24,7 +24,7 @@ if TYPE_CHECKING:
     from collections.abc import Sequence
     from pathlib import Path
 
-    from mslab.scenes.builder import Scene
+    from mslab.scene import Scene
 
 #: scenes generated in code when no scene file of that name exists
 GENERATED = ("chain", "oscillator")

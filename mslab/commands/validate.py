@@ -81,7 +81,7 @@ def line(record: dict) -> str:
         when = f"; about {duration(record['estimated_seconds'])} (from a few timed steps)"
     else:
         when = ""
-    from mslab.scenes.builder import plural
+    from mslab.scene import plural
 
     size = f"{plural(record['n_particles'], 'particle')}, {plural(record['n_springs'], 'spring')}"
     return (f"{record['file']}: ok ({size}, "

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mslab.effects.base import BuildContext, Effect
+from mslab.effects.base import Body, BuildContext, Builder, Effect, HookeSprings
 from mslab.effects.registry import register
 from mslab.effects.schema import Key, check_keys
 from mslab.effects.spring_kernels import scatter_pair_blocks, spring_jacobian_kernel, spring_kernel
@@ -24,8 +24,6 @@ if TYPE_CHECKING:  # scipy.sparse is imported on first use: `import mslab` stays
     import numpy.typing as npt
     import scipy.sparse as sp
 
-    from mslab.scenes.bodies import Body
-    from mslab.scenes.builder import SceneBuilder
 
 
 def scatter_pairs(f: np.ndarray, i: np.ndarray, j: np.ndarray, n: int) -> np.ndarray:
@@ -232,13 +230,17 @@ class Springs(Effect):
         indptr = np.searchsorted(keys // size, np.arange(size + 1)).astype(np.int32)
         return slot, (keys % size).astype(np.int32), indptr
 
+    def hooke_springs(self) -> HookeSprings:
+        """Return ``(i, j, k, L, kind)`` (capability: Hooke springs; the damping is this effect's own)."""
+        return HookeSprings(self.i, self.j, self.stiffness, self.rest_length, self.kind)
+
     def kernel_params(self) -> tuple:
         """Return ``(i, j, stiffness, rest_length, damping, damped)`` for :func:`spring_kernel`."""
         return (self.i, self.j, self.stiffness, self.rest_length, self.damping, int(self.dissipative))
 
     # -- scene description -----------------------------------------------------------------------
     @staticmethod
-    def add_springs(builder: SceneBuilder, pairs: npt.ArrayLike, stiffness: float,
+    def add_springs(builder: Builder, pairs: npt.ArrayLike, stiffness: float,
                     rest_length: npt.ArrayLike | None = None, damping: float = 0.0,
                     kind: str = "structural", duplicates: str = "error") -> np.ndarray:
         """Add springs for every ``(i, j)`` in ``pairs`` with the same parameters; return their indices.
@@ -255,7 +257,7 @@ class Springs(Effect):
         return Springs._table(builder).add(values, builder.positions(), kind, "springs.", explicit=False)
 
     @staticmethod
-    def add_spring(builder: SceneBuilder, i: int, j: int, stiffness: float, rest_length: float | None = None,
+    def add_spring(builder: Builder, i: int, j: int, stiffness: float, rest_length: float | None = None,
                    damping: float = 0.0, kind: str = "structural", duplicates: str = "error") -> int:
         """Add a spring between particles i and j; ``rest_length=None`` takes the current length.
 
@@ -277,14 +279,14 @@ class Springs(Effect):
         return int(added[0])
 
     @staticmethod
-    def _table(builder: SceneBuilder) -> SpringTable:
+    def _table(builder: Builder) -> SpringTable:
         entries = builder.entries(Springs)
         if not entries:
             entries.append(SpringTable())
         return entries[0]
 
     @classmethod
-    def from_toml(cls, builder: SceneBuilder, raw: dict, prefix: str, body: Body | None = None) -> None:
+    def from_toml(cls, builder: Builder, raw: dict, prefix: str, body: Body | None = None) -> None:
         """Read the ``[springs.<kind>]`` tables of one body: pairs within the body, or from its generator."""
         table = builder.check_table(raw, prefix.rstrip("."))
         check_keys(table, cls.kinds, prefix, "spring kind")

@@ -298,7 +298,7 @@ def variational(system: System) -> bool:
     constant and symmetric).
     """
     for e in system.effects:
-        if e.name == "damping":
+        if e.linear_drag() is not None:
             continue
         if e.velocity_dependent or e.dissipative or not e.conservative:
             return False
@@ -317,7 +317,7 @@ def objective(system: System, xh: np.ndarray, vh: np.ndarray, c: float, V: np.nd
     """
     dv = V - vh
     kin = 0.5 * float(np.sum(system.mass[~system.pinned, None] * dv[~system.pinned] ** 2))
-    drag = sum(0.5 * c * e.power(xh, V) for e in system.effects if e.name == "damping")
+    drag = sum(0.5 * c * e.power(xh, V) for e in system.effects if e.linear_drag() is not None)
     return kin + system.potential_energy(xh + c * V) + drag
 
 

@@ -2,15 +2,17 @@
 
 Only the effects added to the builder exist in the built :class:`~mslab.system.System`:
 a scene without colliders never creates (or evaluates) collider code. The effect methods
-(``add_spring``, ``add_gravity``, ``add_plane`` ...) are provided by the effect modules and
-found through the effect registry (:mod:`mslab.effects.registry`); the TOML loader adds
-effects through the same methods.
+(``add_spring``, ``add_gravity``, ``add_plane`` ...) are defined once, by the effect classes,
+and are attributes of ``SceneBuilder`` (listed in its class body; those of an effect module
+added to ``mslab/effects/`` are attached when the registry registers it). The TOML loader
+adds effects through the same methods. Every call costs O(1) amortised, whatever the
+scene's size (``tests/test_builder_cost.py``).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -19,91 +21,12 @@ from mslab.effects import Anchors, Damping, Gravity, Plane, Sphere, Springs, Win
 from mslab.effects.base import BuildContext, Effect
 from mslab.effects.schema import check_values, describe
 from mslab.errors import SceneError
+from mslab.scene import Scene, Settings, spring_effect
 from mslab.state import State
 from mslab.system import System
 
 if TYPE_CHECKING:
     import numpy.typing as npt
-
-
-def plural(n: int, word: str) -> str:
-    """``"1 spring"``, ``"2 springs"``."""
-    return f"{n} {word}{'' if n == 1 else 's'}"
-
-
-@dataclass(frozen=True)
-class Settings:
-    """Run settings a scene suggests: method, step, end time and output thinning."""
-
-    method: str = "rk4"
-    dt: float = 1e-3
-    t_end: float = 1.0
-    save_every: int = 1
-
-
-@dataclass
-class Scene:
-    """A built scene.
-
-    Attributes
-    ----------
-    system : System
-    state0 : State
-        Initial positions and velocities.
-    settings : Settings
-    name, description : str
-    spring_kind : ndarray of str, shape (n_springs,)
-        ``structural``, ``shear``, ``bend`` or any label the builder was given.
-    exact : callable or None
-        ``exact(t) -> (x, v)`` for scenes with a closed-form solution (oscillators),
-        t an array of times; x and v of shape (len(t), n_particles, dim).
-    """
-
-    system: System
-    state0: State
-    settings: Settings = field(default_factory=Settings)
-    name: str = "scene"
-    description: str = ""
-    spring_kind: np.ndarray = field(default_factory=lambda: np.array([], dtype=str))
-    exact: Callable | None = None
-
-    @property
-    def dim(self) -> int:
-        """Number of space dimensions (1, 2 or 3)."""
-        return self.system.dim
-
-    @property
-    def n_particles(self) -> int:
-        """Number of particles."""
-        return self.system.n_particles
-
-    @property
-    def effects(self) -> list[str]:
-        """Names of the effects the system evaluates."""
-        return self.system.effect_names()
-
-    def springs(self) -> Springs | None:
-        """Return the springs effect, if the scene has springs."""
-        for e in self.system.effects:
-            if isinstance(e, Springs):
-                return e
-        return None
-
-    def size_text(self) -> str:
-        """``"2 particles, 1 spring"``: the scene's size in words, singular where it is one."""
-        return f"{plural(self.n_particles, 'particle')}, {plural(len(self.spring_kind), 'spring')}"
-
-    def summary(self) -> dict:
-        """Size, effects and default run settings, as plain data (for tables and JSON)."""
-        s = self.settings
-        return {"scene": self.name, "description": self.description, "dim": self.dim,
-                "n_particles": self.n_particles, "n_springs": len(self.spring_kind),
-                "effects": self.effects, "method": s.method, "dt": s.dt, "t_end": s.t_end,
-                "save_every": s.save_every}
-
-    def with_settings(self, **changes) -> Scene:
-        """Return a copy of the scene with some run settings replaced."""
-        return replace(self, settings=replace(self.settings, **changes))
 
 
 class _Rows:
@@ -146,8 +69,8 @@ class SceneBuilder:
     """Collects particles, springs and effects; ``build()`` returns a :class:`Scene`.
 
     Effect methods (``add_spring``, ``add_springs``, ``add_gravity``, ``add_damping``,
-    ``add_plane``, ``add_sphere``, ``add_anchors`` and those of any effect module added
-    to ``mslab/effects/``) come from the effect registry.
+    ``add_plane``, ``add_sphere``, ``add_anchors``, ``add_wind`` and those of any effect
+    module added to ``mslab/effects/``) are defined by the effect classes.
 
     Parameters
     ----------
@@ -291,8 +214,8 @@ class SceneBuilder:
             if entries:
                 effects.extend(cls.build(entries, ctx))
         system = System(mass, pinned, effects, self.dim)
-        springs = next((e for e in effects if isinstance(e, Springs)), None)
-        kind = springs.kind if springs is not None else np.array([], dtype=str)
+        springs = spring_effect(effects)
+        kind = springs.hooke_springs().kind if springs is not None else np.array([], dtype=str)
         return Scene(system, State(x, v), self.settings, name, description, kind, exact)
 
 
