@@ -91,7 +91,7 @@ def line(record: dict) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``mslab validate`` with the parsed ``args``; return the exit code."""
-    from mslab.commands.precision import write_json
+    from mslab.commands.common import write_json
 
     budget, budget_name = memory_budget(args)
     results = []
