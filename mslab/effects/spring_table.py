@@ -26,9 +26,9 @@ class SpringTable:
     def __init__(self) -> None:
         self.i: list[int] = []
         self.j: list[int] = []
-        self.k: list[float] = []
-        self.rest: list[float] = []
-        self.c: list[float] = []
+        self.stiffness: list[float] = []
+        self.rest_length: list[float] = []
+        self.damping: list[float] = []
         self.kind: list[str] = []
         self._index: dict[int, int] = {}  # (min, max) pair key -> spring index
         self._batches: list[tuple[int, str, bool, int]] = []  # (first spring, where, explicit, pairs offset)
@@ -86,7 +86,7 @@ class SpringTable:
             first = self.label(q)
             second = (f"[{pairs[s, 0] - offset}, {pairs[s, 1] - offset}]" if explicit
                       else self.label(start + s))
-            for column in (self.i, self.j, self.k, self.rest, self.c, self.kind):
+            for column in (self.i, self.j, self.stiffness, self.rest_length, self.damping, self.kind):
                 del column[start:]
             self._batches.pop()
             key = f"{where}pairs[{s}]" if explicit else where.rstrip(".")
@@ -100,12 +100,12 @@ class SpringTable:
                 self._append(pairs[s: s + 1], values, rest[s: s + 1], kind)
                 self._index[int(keys[s])] = q
             else:
-                k_old, k_new = self.k[q], values["stiffness"]
+                k_old, k_new = self.stiffness[q], values["stiffness"]
                 total = k_old + k_new
                 if total > 0:
-                    self.rest[q] = (k_old * self.rest[q] + k_new * rest[s]) / total
-                self.k[q] = total
-                self.c[q] += values["damping"]
+                    self.rest_length[q] = (k_old * self.rest_length[q] + k_new * rest[s]) / total
+                self.stiffness[q] = total
+                self.damping[q] += values["damping"]
             out[s] = q
         return out
 
@@ -133,9 +133,9 @@ class SpringTable:
         self._index[key] = q
         self.i.append(i)
         self.j.append(j)
-        self.k.append(stiffness)
-        self.rest.append(rest_length)
-        self.c.append(damping)
+        self.stiffness.append(stiffness)
+        self.rest_length.append(rest_length)
+        self.damping.append(damping)
         self.kind.append(kind)
         return q
 
@@ -156,7 +156,7 @@ class SpringTable:
         m = pairs.shape[0]
         self.i.extend(pairs[:, 0].tolist())
         self.j.extend(pairs[:, 1].tolist())
-        self.k.extend([float(values["stiffness"])] * m)
-        self.c.extend([float(values["damping"])] * m)
-        self.rest.extend(rest.tolist())
+        self.stiffness.extend([float(values["stiffness"])] * m)
+        self.damping.extend([float(values["damping"])] * m)
+        self.rest_length.extend(rest.tolist())
         self.kind.extend([kind] * m)

@@ -313,7 +313,8 @@ class Springs(Effect):
         if not table.i:
             return []
         pairs = np.stack([np.array(table.i, dtype=np.int64), np.array(table.j, dtype=np.int64)], axis=1)
-        return [cls(pairs, np.array(table.k), np.array(table.rest), np.array(table.c), ctx.n_particles,
+        return [cls(pairs, np.array(table.stiffness), np.array(table.rest_length),
+                    np.array(table.damping), ctx.n_particles,
                     np.array(table.kind, dtype=str))]
 
     @classmethod

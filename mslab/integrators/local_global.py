@@ -67,8 +67,8 @@ class GlobalStep:
         tables = [e.hooke_springs() for e in springs]
         self.i = np.concatenate([t.i for t in tables]) if tables else np.zeros(0, np.int64)
         self.j = np.concatenate([t.j for t in tables]) if tables else np.zeros(0, np.int64)
-        self.k = np.concatenate([t.stiffness for t in tables]) if tables else np.zeros(0)
-        self.rest = np.concatenate([t.rest_length for t in tables]) if tables else np.zeros(0)
+        self.stiffness = np.concatenate([t.stiffness for t in tables]) if tables else np.zeros(0)
+        self.rest_length = np.concatenate([t.rest_length for t in tables]) if tables else np.zeros(0)
         drags = [e for e in system.effects if e.linear_drag() is not None]
         self.gamma = sum(e.linear_drag() for e in drags)
         #: effects evaluated at the iterate: everything but Hooke springs and linear drag
@@ -76,7 +76,8 @@ class GlobalStep:
         #: springs with a velocity-dependent remainder (damping along the springs)
         self.damped_springs = [e for e in springs if e.velocity_dependent]
         n = system.n_particles
-        lap = sp.coo_matrix((np.concatenate([self.k, self.k, -self.k, -self.k]),
+        k = self.stiffness
+        lap = sp.coo_matrix((np.concatenate([k, k, -k, -k]),
                              (np.concatenate([self.i, self.j, self.i, self.j]),
                               np.concatenate([self.i, self.j, self.j, self.i]))), shape=(n, n)).tocsr()
         self.free = ~system.pinned
@@ -179,7 +180,7 @@ class LocalGlobal(Integrator):
             done += 1
             c.n_force += 1
             jd[:] = 0.0
-            projections(x, g.i, g.j, g.k, g.rest, jd)
+            projections(x, g.i, g.j, g.stiffness, g.rest_length, jd)
             if g.others or g.damped_springs:
                 v = (x - xn) / dt
                 for e in g.others:
