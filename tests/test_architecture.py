@@ -112,7 +112,8 @@ def _imports(path: Path) -> set[str]:
         elif isinstance(node, ast.ImportFrom):
             module = node.module or ""
             if node.level:
-                module = ".".join(list(rel_dir[: len(rel_dir) - node.level + 1]) + ([module] if module else []))
+                package = list(rel_dir[: len(rel_dir) - node.level + 1])
+                module = ".".join(package + ([module] if module else []))
             names = []
             for alias in node.names:  # ``from mslab.x import y``: y may be a module itself
                 sub = _module_file(f"{module}.{alias.name}")
@@ -167,7 +168,8 @@ def _upward_imports() -> dict[tuple[str, str], str]:
 def test_imports_go_down_the_layers():
     bad = _upward_imports()
     unexpected = {k: v for k, v in bad.items() if k not in KNOWN_UPWARD}
-    assert not unexpected, "\n".join(f"mslab/{s} -> mslab/{d}: {why}" for (s, d), why in sorted(unexpected.items()))
+    assert not unexpected, "\n".join(f"mslab/{s} -> mslab/{d}: {why}"
+                                     for (s, d), why in sorted(unexpected.items()))
     stale = [k for k in KNOWN_UPWARD if k not in bad]
     assert not stale, f"fixed, remove from KNOWN_UPWARD: {stale}"
 
@@ -283,7 +285,8 @@ def _picks(rel: str) -> list[str]:
     """``isinstance(..., EffectClass)`` calls and comparisons of ``.name`` with an effect's name."""
     out = []
     for node in ast.walk(ast.parse((PACKAGE / rel).read_text())):
-        if isinstance(node, ast.Call) and getattr(node.func, "id", None) == "isinstance" and len(node.args) == 2:
+        call = isinstance(node, ast.Call) and getattr(node.func, "id", None) == "isinstance"
+        if call and len(node.args) == 2:
             names = {n.id for n in ast.walk(node.args[1]) if isinstance(n, ast.Name)}
             out += [f"isinstance(..., {c})" for c in names & set(EFFECT_CLASSES)]
         if isinstance(node, ast.Compare):
