@@ -348,3 +348,20 @@ def test_capabilities_declared_by_the_effects(dim):
                      "Damping": (False, True, False, False), "Plane": (False, False, False, True)}
     assert scene.springs() is scene.system.effects[0]
     importlib.import_module("mslab.scene")
+
+
+# -- mslab bench from an installed package ---------------------------------------------------
+def test_bench_from_an_installed_package_says_it_needs_a_checkout(tmp_path):
+    """A copy of the package without the repository around it (as from a wheel): one line, exit 2."""
+    import os
+    import shutil
+    import subprocess
+    import sys
+
+    shutil.copytree(PACKAGE, tmp_path / "site" / "mslab", ignore=shutil.ignore_patterns("__pycache__"))
+    env = {**os.environ, "PYTHONPATH": str(tmp_path / "site")}
+    out = subprocess.run([sys.executable, "-m", "mslab", "bench", "--quick"], cwd=tmp_path, env=env,
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 2 and out.stdout == ""
+    assert out.stderr.count("\n") == 1 and out.stderr.startswith("mslab: error: bench: needs a checkout")
+    assert str(tmp_path / "site" / "mslab") in out.stderr
