@@ -22,7 +22,9 @@ if TYPE_CHECKING:
     from mslab.system import System
 
 #: slots of a session of unknown length allocated at first (then doubled as needed)
-FIRST_CAPACITY = 64
+FIRST_CAPACITY = 8
+#: ``save_every`` of an open-ended session that saves only its first state (the default)
+NEVER = 2**40
 
 
 def xs_bytes(shape: tuple) -> int:
@@ -49,8 +51,10 @@ class Samples:
         self.shape = shape
         self.k = 0
         self._filled = 0  # samples [0, _filled) have K, U, W_ext
-        steps = save_indices(end, save_every) if end is not None else \
-            np.arange(FIRST_CAPACITY, dtype=np.int64) * save_every
+        if end is not None:
+            steps = save_indices(end, save_every)
+        else:
+            steps = np.arange(2 if save_every >= NEVER else FIRST_CAPACITY, dtype=np.int64) * save_every
         self._allocate(steps)
 
     def _allocate(self, steps: np.ndarray) -> None:

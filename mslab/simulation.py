@@ -30,7 +30,7 @@ import numpy as np
 from mslab import fast, stopping
 from mslab.errors import ConvergenceError, InstabilityError, StepFailure
 from mslab.integrators.base import Integrator, get_method
-from mslab.ledger import Samples, initial_energy_scale
+from mslab.ledger import NEVER, Samples, initial_energy_scale
 from mslab.state import State
 from mslab.stepping import CompiledLoop, NumpyLoop
 from mslab.steps import check_dt, step_count
@@ -68,8 +68,9 @@ class Simulation:
         beyond, its last step is saved and ledger-checked, and ``auto`` weighs its length.
         None: open-ended.
     save_every : int, optional
-        Save every n-th step (and the declared end); default ``scene.settings.save_every``.
-        ``trajectory`` adds the current state when it is not a saved step.
+        Save every n-th step (and the declared end). Default: ``scene.settings.save_every``
+        with a ``t_end``; an open-ended session saves only its first state (hours of frames
+        fill no memory). ``trajectory`` adds the current state when it is not a saved step.
     blowup, energy_blowup, stable_dt, check_stability, backend
         As in :func:`mslab.simulate`.
 
@@ -91,7 +92,9 @@ class Simulation:
         self.integrator = get_method(method if method is not None else s.method)
         self.dt = check_dt(s.dt if dt is None else dt)
         self.end = None if t_end is None else step_count(float(t_end), self.dt)
-        self.save_every = int(s.save_every if save_every is None else save_every)
+        if save_every is None:  # open-ended: only the first state (hours of frames fill no memory)
+            save_every = s.save_every if self.end is not None else NEVER
+        self.save_every = int(save_every)
         if self.save_every < 1:
             raise ValueError(f"save_every must be >= 1, got {self.save_every}")
         self.blowup = blowup

@@ -33,9 +33,14 @@ if TYPE_CHECKING:
 #: force evaluation) then costs a few per cent of the compiled steps between checks
 CHECK_EVALS = 128
 #: growth that counts as an instability: the ledger gained more than the scene's energy scale
-#: (``LEVEL``) and more than ``GROWTH`` times its largest deviation in the first quarter so far
+#: (``LEVEL``), and its deviation rose at ``RISE_CHECKS`` checks in a row (or more) by ``GROWTH``
+#: times overall; a check whose deviation stays above ``KEEP`` times the rise's peak continues it
 LEVEL = 1.0
 GROWTH = 100.0
+RISE_CHECKS = 4
+KEEP = 0.5
+#: deviations below this fraction of the scale are round-off: they start no rise
+FLOOR = 1e-10
 
 
 def position_limit(scene: Scene, blowup: float) -> float:
@@ -71,66 +76,71 @@ def check_stability(scene: Scene, integrator: Integrator, dt: float, stable_dt: 
 class LedgerCheck:
     """The saturation detector: growth of the ledger total ``E = K + U + D - W_ext``.
 
-    At every checked step ``s`` (multiples of :attr:`every`, and the declared end of a run)
-    the deviation ``g(s) = (E(s) - E(0)) / scale`` is compared with what came before. A
-    run is unstable at ``s`` when ``g(s)`` is NaN or above ``energy_blowup`` (default 1e4),
-    or when it **grew**: ``g(s) > LEVEL`` (the ledger gained the scene's whole energy scale,
-    which no method of the right order does at a stable dt) and ``g(s) > GROWTH * r(s)``,
-    where ``r(s)`` is the largest ``|g|`` at the checks up to ``s / 4``. A stable method's
-    error reaches its size early and stays (symplectic) or drifts slowly; an instability
-    grows geometrically, saturated or not. Only gains count: implicit methods lose energy.
+    Checked steps: 1, 2, 4, ... below :attr:`every`, then every :attr:`every` steps, and the
+    declared end of a run — step numbers only, so any chunking checks the same steps. At each,
+    ``g = (E - E(0)) / scale``. The run is unstable there when ``g`` is NaN or above
+    ``energy_blowup`` (default 1e4), or when ``g`` **grew**: ``g > LEVEL`` (the ledger gained
+    the scene's whole energy scale, which no method does at a stable dt) after ``|g|`` rose
+    over at least ``RISE_CHECKS`` checks in a row (none falling below ``KEEP`` times the
+    rise's peak) by ``GROWTH`` times or more. A stable method's error reaches its size and
+    stays (symplectic) or drifts slowly; an instability grows geometrically, saturated or
+    not, until the positions or the nonlinearity bound it; an impact at a large dt is one
+    jump, not a rise, and meets only the ``energy_blowup`` bound. Only gains count:
+    implicit methods lose energy.
 
     ``scale`` is :func:`mslab.ledger.initial_energy_scale`; a scene that starts at rest with
-    nothing to release (scale 0: a wind drives it) uses the largest kinetic energy at the
-    checks up to ``s / 4``. ``energy_blowup = inf`` turns the check off.
+    nothing to release (scale 0: a wind drives it) uses the largest kinetic energy checked
+    so far. ``energy_blowup = inf`` turns the check off.
     """
 
     def __init__(self, scale: float, energy_blowup: float, n_stages: int, end: int | None):
         self.scale, self.energy_blowup, self.end = scale, energy_blowup, end
         self.on = not math.isinf(energy_blowup)
-        #: steps between two checks
+        #: steps between two checks (after the doubling ones)
         self.every = max(1, CHECK_EVALS // max(1, n_stages))
         self._e0 = 0.0
-        self._pending: deque = deque()  # (step, E - E0, K) of checks not yet in the first quarter
-        self._early = (0, 0.0, 0.0)  # last step, largest |E - E0|, largest K of the first quarter
+        self._k_max = 0.0
+        self._rise = (0, 0.0, 0.0, 0)  # (first step, first |E - E0|, peak |E - E0|, checks)
 
     def due(self, step: int) -> bool:
         """Return whether the ledger is checked after ``step``."""
-        return self.on and (step % self.every == 0 or step == self.end)
+        if not self.on:
+            return False
+        return step % self.every == 0 or step == self.end or (step < self.every and step & (step - 1) == 0)
 
     def next_due(self, step: int) -> int:
         """Return the first checked step after ``step`` (a large number when the check is off)."""
         if not self.on:
             return 2**62
         nxt = (step // self.every + 1) * self.every
+        if step + 1 < self.every:
+            nxt = min(nxt, 1 << step.bit_length())
         return min(nxt, self.end) if self.end is not None and self.end > step else nxt
 
     def start(self, total: float) -> None:
         """Record ``E(0)``."""
-        self._e0 = total
-        self._pending = deque([(0, 0.0, 0.0)])
-        self._early = (0, 0.0, 0.0)
+        self._e0, self._k_max, self._rise = total, 0.0, (0, 0.0, 0.0, 0)
 
     def check(self, step: int, total: float, kinetic: float) -> str | None:
         """Record ``E(step)``; return why the run is unstable there, or None."""
-        since, deviation, k_max = self._early
-        while self._pending and self._pending[0][0] <= step // 4:  # the first quarter grows
-            s, d, k = self._pending.popleft()
-            since, deviation, k_max = s, max(deviation, abs(d)), max(k_max, k)
-        self._early = (since, deviation, k_max)
-        change = total - self._e0
-        self._pending.append((step, change, kinetic))
-        scale = self.scale if self.scale > 0 else k_max
+        self._k_max = max(self._k_max, kinetic)
+        scale = self.scale if self.scale > 0 else self._k_max
         if not scale > 0:
             return None
-        growth, reference = change / scale, deviation / scale
+        change = total - self._e0
+        growth = change / scale
         if not growth <= self.energy_blowup:  # NaN counts as over
             return f"grew by {growth:.3g} x the scene's energy scale"
-        if growth > LEVEL and growth > GROWTH * reference:
-            return (f"grew by {growth:.3g} x the scene's energy scale, "
-                    + (f"{growth / reference:.3g} x its largest deviation up to step {since} "
-                       if reference > 0 else f"from exactly its initial value at step {since} ")
-                    + "(a growth only an instability makes: the positions stayed bounded, so its "
-                      "amplitude saturated, e.g. springs swinging through zero length or a contact "
-                      "bouncing)")
+        size = abs(change) if abs(change) > FLOOR * scale else 0.0
+        first, low, peak, count = self._rise
+        if size > 0 and count and size >= KEEP * peak:
+            self._rise = (first, low, max(peak, size), count + 1)
+        else:
+            self._rise = (step, size, size, 1 if size > 0 else 0)
+        first, low, peak, count = self._rise
+        if growth > LEVEL and count >= RISE_CHECKS and change >= GROWTH * low:
+            return (f"grew by {growth:.3g} x the scene's energy scale, rising over the last {count} "
+                    f"checks, {change / low:.3g} x since step {first} (growth only an instability makes: "
+                    f"the positions stayed bounded, so its amplitude saturated, e.g. springs swinging "
+                    f"through zero length or a contact bouncing)")
         return None
