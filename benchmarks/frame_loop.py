@@ -47,7 +47,7 @@ DT = 1.0 / 60.0 / SUBSTEPS
 
 
 def frame_cloth(n: int):
-    """The issue's cloth: n x n particles of 0.25 kg (stable at dt = 1/960), k = 1000, c = 10 on every spring."""
+    """The issue's cloth: n x n particles of 0.25 kg (stable at dt = 1/960), k = 1000, c = 10 per spring."""
     from mslab.scenes.generators import cloth
 
     return cloth(n, n, size=0.02 * (n - 1), mass=0.25 * n * n, structural=1000.0, shear=1000.0, bend=1000.0,

@@ -35,9 +35,6 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
              check_stability: bool = True, energy_blowup: float = 1e4) -> Trajectory:
     """Integrate a scene with a fixed step: ``Simulation(...)`` advanced to ``t_end``.
 
-    Implicit methods run with single-threaded BLAS (:mod:`mslab.threads`): Newton's solves
-    and the step-limit prediction work on small matrices, where threads only cost time.
-
     Parameters
     ----------
     scene : Scene
@@ -63,9 +60,8 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
     stable_dt : float, optional
         Predicted stable step, quoted in the InstabilityError message.
     backend : {"auto", "numba", "numpy"}, optional
-        Compiled or numpy stepping loop, fixed for the run (see :mod:`mslab.fast`); None reads
-        ``$MSLAB_BACKEND`` (default ``"auto"``: compiled when the scene's effects all have
-        kernels, the method has a compiled loop and the run is long enough to repay loading it).
+        Stepping loop, fixed for the run (:mod:`mslab.fast`); None reads ``$MSLAB_BACKEND``
+        (default ``"auto"``: compiled where it applies and the run repays loading it).
     check_stability : bool
         For explicit methods, predict the largest stable dt first
         (:func:`mslab.stability.predicted_stable_dt`; not counted in ``stats``) and warn with

@@ -142,10 +142,11 @@ class Simulation:
         return self._trajectory(self._samples.k, True, current=True)
 
     # -- stepping ------------------------------------------------------------------------------
-    def advance(self, n: int | None = None, *, t: float | None = None, progress: object = False) -> State:
+    def advance(self, n: int | None = None, *, t: float | None = None, progress: object = False) -> None:
         """Take ``n`` more steps (or ``t`` more seconds, a whole number of steps; neither: to ``t_end``).
 
-        Returns the new :attr:`state`. Raises InstabilityError or ConvergenceError where the
+        Returns nothing: read :attr:`state` (a copy) when needed, so a call costs its steps.
+        Raises InstabilityError or ConvergenceError where the
         run fails (``.trajectory`` keeps the samples before the failing step; the session
         then stays stopped), SimulationInterrupted on Ctrl-C. ``progress`` as in
         :func:`mslab.simulate`.
@@ -153,18 +154,15 @@ class Simulation:
         if self._failed is not None:
             raise ValueError(f"the session stopped at step {self.step}: {self._failed}")
         count = self._count(n, t)
-        self._begin(count)
-        target = self.step + count
-        if self.end is not None and target > self.end:
+        if self.end is not None and self.step + count > self.end:
             raise ValueError(f"the session ends at step {self.end} (t_end); {count} more steps from "
                              f"step {self.step} go beyond")
-        if self.integrator.implicit:
+        if self.integrator.implicit:  # Newton's small solves: threads only cost time (mslab.threads)
             from mslab.threads import single_threaded_blas
 
-            single_threaded_blas(self._advance)(target, progress)
+            single_threaded_blas(self._advance)(count, progress)
         else:
-            self._advance(target, progress)
-        return self._loop.state()
+            self._advance(count, progress)
 
     def _count(self, n: int | None, t: float | None) -> int:
         if n is not None and t is not None:
@@ -198,10 +196,12 @@ class Simulation:
         else:
             self._loop = CompiledLoop(runner, state, self.dt, self._limit)
 
-    def _advance(self, target: int, progress: object) -> None:
+    def _advance(self, count: int, progress: object) -> None:
         from mslab.progress import make_progress
 
+        self._begin(count)
         loop, samples, check = self._loop, self._samples, self._check
+        target = loop.step + count
         bar, own_bar = make_progress(progress, target - loop.step, self.integrator.name)
         before, start = self.system.counters.snapshot(), time.perf_counter()
         try:

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import math
 import warnings
-from collections import deque
 from typing import TYPE_CHECKING
 
 import numpy as np
