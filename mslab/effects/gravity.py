@@ -78,6 +78,14 @@ class Gravity(Effect):
         """Return ``m_i g`` for every particle, shape (n_particles, dim)."""
         return self._f.copy()
 
+    def releasable_energy(self, movable: np.ndarray, height: float) -> float:
+        """Return the energy this field can release on the ``movable`` particles over ``height``.
+
+        Capability read by the blow-up checks' energy scale (:mod:`mslab.ledger`):
+        ``sum_movable m |g| height``.
+        """
+        return float(np.sum(self.mass[movable]) * np.linalg.norm(self.g)) * height
+
     def energy(self, x: np.ndarray) -> float:
         """Return the potential energy ``-sum_i m_i g . x_i``."""
         return float(-np.sum(self._f * x))
