@@ -113,6 +113,14 @@ def method_help(what: str = "integrator") -> str:
     return f"{what}: {', '.join(methods())} (details: `mslab methods`)"
 
 
+def add_settings_options(p: argparse.ArgumentParser) -> None:
+    """Add ``--method --dt --t-end --save-every``, which override the scene file's [run] settings."""
+    p.add_argument("--method", default=None, metavar="METHOD", help=method_help())
+    p.add_argument("--dt", type=float, default=None, help="time step [s]")
+    p.add_argument("--t-end", dest="t_end", type=float, default=None, help="end time [s]")
+    p.add_argument("--save-every", dest="save_every", type=int, default=None, help="keep every n-th step")
+
+
 def save_figure(fig: Figure, path: str | Path) -> Path:
     """Save a matplotlib figure atomically (PNG, fixed dpi) and close it."""
     import matplotlib.pyplot as plt

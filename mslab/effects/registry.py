@@ -10,10 +10,13 @@ imports each of its modules (:func:`discover`: once per process, again when the 
 from __future__ import annotations
 
 import importlib
+import os
 import pkgutil
+import sys
 from collections.abc import Callable
 
 from mslab.effects.base import Effect
+from mslab.errors import failure_line, note_broken, warn_broken
 
 #: infrastructure modules of the package that define no effect
 _INFRASTRUCTURE = {"base", "registry", "schema", "docs"}
@@ -57,7 +60,9 @@ def discover() -> None:
     """Import every module of the ``mslab.effects`` package not imported yet.
 
     Modules on any folder of the package's ``__path__`` count, so a test (or a course
-    installation) may add a folder to ``mslab.effects.__path__``.
+    installation) may add a folder to ``mslab.effects.__path__``. A module that fails to
+    import is skipped with one line ``FILE:LINE: reason`` (:func:`mslab.errors.broken_files`,
+    reported by the next lookup); the other effects keep working.
     """
     global _scanned
     import mslab.effects as package
@@ -68,7 +73,15 @@ def discover() -> None:
         if name in _INFRASTRUCTURE or name.startswith("_") or name in _imported:
             continue
         _imported.add(name)
-        importlib.import_module(f"mslab.effects.{name}")
+        before = set(_registry)
+        try:
+            importlib.import_module(f"mslab.effects.{name}")
+        except Exception as err:  # noqa: BLE001 - a broken effect file is skipped, the others work
+            sys.modules.pop(f"mslab.effects.{name}", None)
+            for added in set(_registry) - before:
+                del _registry[added]
+            path = os.path.join(getattr(info.module_finder, "path", ""), f"{name}.py")
+            note_broken(failure_line(err, path))
 
 
 def _discovered() -> None:
@@ -82,6 +95,7 @@ def _discovered() -> None:
 def effect_classes() -> list[type[Effect]]:
     """Return the registered effect classes in System order (``order``, then registration order)."""
     _discovered()
+    warn_broken()
     return sorted(_registry.values(), key=lambda cls: cls.order)
 
 

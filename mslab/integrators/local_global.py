@@ -163,6 +163,8 @@ class LocalGlobal(Integrator):
     # -- stepping ---------------------------------------------------------------------------------
     def step(self, system: System, state: State, dt: float) -> State:
         """One step: ``iterations`` local/global sweeps from the inertial guess ``y``."""
+        if system.pinned.all():  # nothing free: no global matrix to factor, every particle stays put
+            return State(state.x + dt * state.v, state.v.copy(), (), state.dissipated)
         g = global_step(system, dt)
         c = system.counters
         xn, vn = state.x, state.v
