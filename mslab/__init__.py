@@ -14,7 +14,7 @@ from mslab.integrators import (
     methods,
 )
 from mslab.scenes import Scene, SceneBuilder, Settings, load_scene, scene_names
-from mslab.simulate import SimulationInterrupted, simulate
+from mslab.simulate import Simulation, SimulationInterrupted, simulate
 from mslab.state import State
 from mslab.system import System
 from mslab.trajectory import Energy, Stats, Trajectory
@@ -38,7 +38,7 @@ def __getattr__(name: str):
 __all__ = [
     "COURSE_METHODS", "ConvergenceError", "Energy", "ExplicitRK", "ImplicitRK", "InstabilityError",
     "Integrator", "Splitting",
-    "MslabError", "Scene", "SceneBuilder", "SceneError", "Settings", "SimulationInterrupted",
+    "MslabError", "Scene", "SceneBuilder", "SceneError", "Settings", "Simulation", "SimulationInterrupted",
     "StabilityWarning", "State", "Stats", "System", "Trajectory", "get_method", "load_scene", "methods",
     "scene_names", "simulate",
     "stability",

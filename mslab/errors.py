@@ -2,10 +2,7 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
-if TYPE_CHECKING:
-    from mslab.trajectory import Trajectory
+from typing import Any
 
 
 class MslabError(Exception):
@@ -42,12 +39,13 @@ class InstabilityError(MslabError, FloatingPointError):
     method, step, t, dt : the run and the step at which it was stopped.
     stable_dt : float or None
         The predicted largest stable step for this scene and method, when known.
-    trajectory : Trajectory or None
-        Everything saved up to the last good step.
+    trajectory : mslab.trajectory.Trajectory or None
+        Everything saved up to the last good step (typed ``Any`` here: errors are a leaf
+        module and import nothing of mslab).
     """
 
     def __init__(self, message: str, *, method: str = "", step: int = 0, t: float = 0.0,
-                 dt: float = 0.0, stable_dt: float | None = None, trajectory: Trajectory | None = None):
+                 dt: float = 0.0, stable_dt: float | None = None, trajectory: Any = None):
         super().__init__(message)
         self.method = method
         self.step = step

@@ -89,7 +89,7 @@ def line(record: dict) -> str:
         when = f"; about {duration(record['estimated_seconds'])} (from a few timed steps)"
     else:
         when = ""
-    from mslab.scenes.builder import plural
+    from mslab.scene import plural
 
     size = f"{plural(record['n_particles'], 'particle')}, {plural(record['n_springs'], 'spring')}"
     return (f"{record['file']}: ok ({size}, "
@@ -99,7 +99,7 @@ def line(record: dict) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``mslab validate`` with the parsed ``args``; return the exit code."""
-    from mslab.commands.precision import write_json
+    from mslab.commands.common import write_json
 
     budget, budget_name = memory_budget(args)
     results = []

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mslab.effects.base import BuildContext, Effect
+from mslab.effects.base import BuildContext, Builder, Effect
 from mslab.effects.registry import register
 from mslab.effects.schema import Key
 
@@ -19,7 +19,6 @@ if TYPE_CHECKING:
     import numpy.typing as npt
     import scipy.sparse as sp
 
-    from mslab.scenes.builder import SceneBuilder
 
 
 def down(dim: int) -> np.ndarray:
@@ -79,6 +78,14 @@ class Gravity(Effect):
         """Return ``m_i g`` for every particle, shape (n_particles, dim)."""
         return self._f.copy()
 
+    def releasable_energy(self, movable: np.ndarray, height: float) -> float:
+        """Return the energy this field can release on the ``movable`` particles over ``height``.
+
+        Capability read by the blow-up checks' energy scale (:mod:`mslab.ledger`):
+        ``sum_movable m |g| height``.
+        """
+        return float(np.sum(self.mass[movable]) * np.linalg.norm(self.g)) * height
+
     def energy(self, x: np.ndarray) -> float:
         """Return the potential energy ``-sum_i m_i g . x_i``."""
         return float(-np.sum(self._f * x))
@@ -87,12 +94,16 @@ class Gravity(Effect):
         """Return ``(None, None)``: a constant force has zero Jacobians."""
         return None, None
 
+    def constant_force(self) -> np.ndarray:
+        """Return ``m_i g`` for every particle, shape (n_particles, dim) (capability: a constant force)."""
+        return self._f.copy()
+
     def kernel_params(self) -> tuple:
         """Return ``(m g,)``, shape (n_particles, dim), for :func:`gravity_kernel`."""
         return (self._f,)
 
     @staticmethod
-    def add_gravity(builder: SceneBuilder, g: npt.ArrayLike) -> None:
+    def add_gravity(builder: Builder, g: npt.ArrayLike) -> None:
         """Add uniform gravity: a vector (``[0, -9.81]``) or a number pulling down (-y in 2D, -z in 3D)."""
         builder.add_effect(Gravity, g=g)
 

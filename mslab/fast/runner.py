@@ -1,4 +1,4 @@
-"""The compiled steps of ``simulate``: chunks of the family's loop over the scene's kernels."""
+"""The compiled steps of a stepping session: chunks of the family's loop over the scene's kernels."""
 
 from __future__ import annotations
 
@@ -19,11 +19,14 @@ _EULER = (np.zeros((1, 1)), np.ones(1))
 
 
 class Stepper:
-    """Runs the steps of ``simulate`` in compiled chunks (built by :func:`mslab.fast.stepper`).
+    """Runs the steps of a session (:class:`mslab.simulation.Simulation`) in compiled chunks.
+
+    Built by :func:`mslab.fast.stepper`; holds the state, the method's memory and the
+    loop's buffers between calls, so a session stepped frame by frame pays no set-up per call.
 
     The loop is the one the method names (``Integrator.compiled``): ``"explicit_rk"`` over
     ``(A, b)``, ``"splitting"`` over ``(drift, kick)``, ``"verlet"`` or ``"leapfrog"``; for
-    ``"implicit"`` there is no loop: ``simulate`` steps the method on :attr:`view`, a
+    ``"implicit"`` there is no loop: the session steps the method on :attr:`view`, a
     :class:`~mslab.fast.newton.CompiledSystem`.
     Counts ``n_force`` on the System exactly as the numpy loop does (the loops return it).
     """
@@ -47,24 +50,53 @@ class Stepper:
         self.chunk = int(min(self.max_chunk, max(1, 10**7 // max(1, work * integrator.n_stages))))
         self._x = self._v = None
         self._mem = None
+        #: dissipated work of the loaded state (follows the steps)
+        self.dissipated = 0.0
+
+    def load(self, state: State) -> None:
+        """Take ``state`` (after the method's numpy ``start``) as the state the loop continues from."""
+        self._x = np.array(state.x, dtype=np.float64, order="C")
+        self._v = np.array(state.v, dtype=np.float64, order="C")
+        self._mem = self._memory(state)
+        self.dissipated = float(state.dissipated)
+
+    def run(self, dt: float, step: int, stop: int, saved: np.ndarray, k: int, xs: np.ndarray,
+            vs: np.ndarray, ds: np.ndarray, limit: float) -> tuple[int, int, bool]:
+        """Take steps ``step+1 .. stop`` from the loaded state, in place; no copy of the state.
+
+        Fills ``xs, vs, ds`` at the indices ``saved[k:]`` reached. Returns ``(step, k, ok)``;
+        ``ok`` is False when step ``step`` blew up. :attr:`dissipated` follows.
+        """
+        out = self._run(self._x, self._v, self.dissipated, self._mem,
+                        (float(dt), step, stop, saved, k, xs, vs, ds, float(limit)))
+        new_step, k, self.dissipated, status, n_force = out
+        self.system.counters.n_force += n_force
+        return new_step, k, status == self.model.module.OK
+
+    @property
+    def x(self) -> np.ndarray:
+        """The loop's positions (its own array: read, do not keep)."""
+        return self._x
+
+    @property
+    def v(self) -> np.ndarray:
+        """The loop's velocities (its own array: read, do not keep)."""
+        return self._v
+
+    def state(self) -> State:
+        """Return a copy of the loop's current state, with the method's memory."""
+        return State(self._x.copy(), self._v.copy(), self._memory_tuple(), self.dissipated)
 
     def advance(self, state: State, dt: float, step: int, stop: int, saved: np.ndarray, k: int,
                 xs: np.ndarray, vs: np.ndarray, ds: np.ndarray, limit: float) -> tuple[int, int, State, bool]:
-        """Take steps ``step+1 .. stop`` from ``state`` (the state after ``step``).
+        """:meth:`run` from ``state`` at the first call (later calls continue the loaded state).
 
-        Fills ``xs, vs, ds`` at the indices ``saved[k:]`` reached. Returns
-        ``(step, k, state, ok)``; ``ok`` is False when step ``step`` blew up.
+        Returns ``(step, k, state, ok)`` with a copy of the state (benchmarks/warp_cloth.py).
         """
         if self._x is None:
-            self._x = np.array(state.x, dtype=np.float64, order="C")
-            self._v = np.array(state.v, dtype=np.float64, order="C")
-            self._mem = self._memory(state)
-        out = self._run(self._x, self._v, float(state.dissipated), self._mem,
-                        (float(dt), step, stop, saved, k, xs, vs, ds, float(limit)))
-        new_step, k, dissipated, status, n_force = out
-        self.system.counters.n_force += n_force
-        state = State(self._x.copy(), self._v.copy(), self._memory_tuple(), dissipated)
-        return new_step, k, state, status == self.model.module.OK
+            self.load(state)
+        new_step, k, ok = self.run(dt, step, stop, saved, k, xs, vs, ds, limit)
+        return new_step, k, self.state(), ok
 
     def warm(self) -> None:
         """Load (or compile) the loop now, by a call of zero steps.

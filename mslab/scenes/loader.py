@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from mslab.errors import SceneError
-from mslab.scenes.builder import Scene, Settings
+from mslab.scene import Scene, Settings
 from mslab.scenes.settings import RUN_KEYS, check_settings
 from mslab.scenes.toml_read import read_scene_file
 from mslab.scenes.validate import scene_from_doc

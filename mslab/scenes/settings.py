@@ -40,7 +40,7 @@ def check_settings(settings: Mapping, source: str | None = None, *, dt: float | 
     values to use where ``settings`` has none). ``note`` ends every message.
     """
     from mslab.integrators.base import get_method
-    from mslab.simulate import step_count
+    from mslab.steps import step_count
 
     def fail(key: str, reason: str):
         raise SceneError(key, f"{reason}{note}", source)

@@ -17,8 +17,9 @@ import numpy as np
 
 from mslab.effects.schema import check_keys, integer, string
 from mslab.errors import SceneError
+from mslab.scene import Scene, Settings
 from mslab.scenes.bodies import PARTICLE_KEYS, add_body
-from mslab.scenes.builder import Scene, SceneBuilder, Settings
+from mslab.scenes.builder import SceneBuilder
 from mslab.scenes.generators import GENERATORS, generator_shape
 from mslab.scenes.sections import add_body_effects, add_scene_effects, body_sections, scene_sections
 from mslab.scenes.settings import canonical, read_run

@@ -17,7 +17,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from mslab.integrators.base import Integrator, get_method
-from mslab.scenes.builder import Scene
+from mslab.scene import Scene
 from mslab.stability.functions import amplification
 from mslab.stability.limits import _ray_limit, oscillator_limit
 from mslab.state import State
@@ -57,9 +57,6 @@ def linearise(scene: Scene, x: np.ndarray | None = None, v: np.ndarray | None = 
         ``df/dv``, None when no effect depends on velocity.
     inv_mass : ndarray, shape (n_free,)
     """
-    from mslab.effects.base import block_diagonal
-    from mslab.effects.colliders import PenaltyCollider
-
     system = scene.system
     x = scene.state0.x if x is None else x
     v = scene.state0.v if v is None else v
@@ -68,12 +65,8 @@ def linearise(scene: Scene, x: np.ndarray | None = None, v: np.ndarray | None = 
     D = None
     for e in system.effects:
         kx, kv = e.jacobians(x, v)
-        if isinstance(e, PenaltyCollider) and contacts == "possible":
-            _, normal, _ = e._contact(x)
-            touching = np.linalg.norm(normal, axis=1, keepdims=True) > 0
-            normal = np.where(touching, normal, 1.0 / np.sqrt(x.shape[1]))
-            blocks = -e.stiffness * normal[:, :, None] * normal[:, None, :]
-            kx = block_diagonal(blocks, np.arange(system.n_particles), system.n_particles)
+        if e.may_touch and contacts == "possible":
+            kx = e.contact_jacobian(x)
         if kx is not None:
             K = K + kx
         if kv is not None:

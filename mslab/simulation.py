@@ -1,0 +1,292 @@
+"""A stepping session: advance a scene frame by frame, the same run as one long ``simulate`` call.
+
+``Simulation(scene, method, dt)`` starts a run; ``advance(n)`` (or ``advance(t=...)``)
+takes more steps; ``state``, ``t``, ``trajectory`` and ``stats`` describe it so far. Every
+run of mslab is a session: :func:`mslab.simulate` is one ``advance`` of a session of
+declared length. Advancing in any chunks gives bitwise the same positions, velocities,
+energy ledger, counters and saved samples as one long call, on both backends: the session
+holds the method's memory (Verlet's previous positions, leapfrog's half-step velocity,
+a reused acceleration), the accumulated dissipated work, the blow-up checks' scales and the
+compiled loop with its buffers; a call costs its steps, plus the ledger of the samples
+it saves when they are read (:mod:`mslab.ledger`) and a ledger check every
+:attr:`mslab.stopping.LedgerCheck.every` steps (:mod:`mslab.stopping`).
+
+**Backend** (decided once per session, deterministically, never by timing): ``"numpy"``,
+``"numba"``, or ``"auto"`` (default), decided at the first ``advance`` by
+:func:`mslab.fast.worth_compiling` from the session's expected steps: its declared length
+(``t_end``) when it has one, else the larger of the first advance and :data:`HORIZON`
+steps — so stepping a 64 x 64 cloth one frame at a time gets the compiled loop, a
+five-particle chain the numpy one.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from mslab import fast, stopping
+from mslab.errors import ConvergenceError, InstabilityError, StepFailure
+from mslab.integrators.base import Integrator, get_method
+from mslab.ledger import NEVER, Samples, initial_energy_scale
+from mslab.state import State
+from mslab.stepping import CompiledLoop, NumpyLoop
+from mslab.steps import check_dt, step_count
+from mslab.stopping import LedgerCheck, hint, position_limit
+from mslab.trajectory import Energy, Stats, Trajectory
+
+if TYPE_CHECKING:
+    from mslab.scenes.builder import Scene
+
+#: steps a session of unknown length is expected to take, for ``backend="auto"``: about three
+#: seconds of frames of 16 substeps at 60 frames per second
+HORIZON = 3000
+
+
+class SimulationInterrupted(KeyboardInterrupt):
+    """Ctrl-C during a run: ``.trajectory`` holds what was computed."""
+
+    def __init__(self, trajectory: Trajectory):
+        super().__init__("interrupted")
+        self.trajectory = trajectory
+
+
+class Simulation:
+    """A stepping session over one scene with one method and a fixed step.
+
+    Parameters
+    ----------
+    scene : Scene
+    method : str or Integrator, optional
+        Registry name (see ``mslab.methods()``); default ``scene.settings.method``.
+    dt : float, optional
+        The step; default ``scene.settings.dt``. Validated here, once.
+    t_end : float, optional
+        Declared length (``t_end / dt`` a whole number of steps): the run may not go
+        beyond, its last step is saved and ledger-checked, and ``auto`` weighs its length.
+        None: open-ended.
+    save_every : int, optional
+        Save every n-th step (and the declared end). Default: ``scene.settings.save_every``
+        with a ``t_end``; an open-ended session saves only its first state (hours of frames
+        fill no memory). ``trajectory`` adds the current state when it is not a saved step.
+    blowup, energy_blowup, stable_dt, check_stability, backend
+        As in :func:`mslab.simulate`.
+
+    Attributes
+    ----------
+    step : int
+        Steps taken.
+    stats : Stats
+        Cumulative work and stepping time of the session.
+    """
+
+    def __init__(self, scene: Scene, method: str | Integrator | None = None, dt: float | None = None, *,
+                 t_end: float | None = None, save_every: int | None = None, blowup: float = 1e6,
+                 stable_dt: float | None = None, backend: str | None = None, check_stability: bool = True,
+                 energy_blowup: float = 1e4, _stacklevel: int = 2):
+        s = scene.settings
+        self.backend = fast.check_backend(backend)
+        self.scene, self.system = scene, scene.system
+        self.integrator = get_method(method if method is not None else s.method)
+        self.dt = check_dt(s.dt if dt is None else dt)
+        self.end = None if t_end is None else step_count(float(t_end), self.dt)
+        if save_every is None:  # open-ended: only the first state (hours of frames fill no memory)
+            save_every = s.save_every if self.end is not None else NEVER
+        self.save_every = int(save_every)
+        if self.save_every < 1:
+            raise ValueError(f"save_every must be >= 1, got {self.save_every}")
+        self.blowup = blowup
+        self.stable_dt = stable_dt
+        if check_stability and self.integrator.explicit:
+            self.stable_dt = stopping.check_stability(scene, self.integrator, self.dt, stable_dt,
+                                                      stacklevel=_stacklevel + 1)
+        self.stats = Stats(method=self.integrator.name, dt=self.dt)
+        self._samples = Samples(self.system, scene.state0.x.shape, self.save_every, self.end)
+        self._check = LedgerCheck(initial_energy_scale(scene), energy_blowup, self.integrator.n_stages,
+                                  self.end)
+        self._limit = position_limit(scene, blowup)
+        self._loop: NumpyLoop | CompiledLoop | None = None
+        self._failed: Exception | None = None
+
+    # -- what the session is at ---------------------------------------------------------------
+    @property
+    def step(self) -> int:
+        """Steps taken so far."""
+        return 0 if self._loop is None else self._loop.step
+
+    @property
+    def t(self) -> float:
+        """Time reached: ``step * dt``."""
+        return self.step * self.dt
+
+    @property
+    def state(self) -> State:
+        """The current state (a copy where the compiled loop holds it)."""
+        self._begin(0)
+        return self._loop.state()
+
+    @property
+    def compiled(self) -> bool:
+        """Whether the compiled loop steps this session (decided at the first advance)."""
+        self._begin(0)
+        return isinstance(self._loop, CompiledLoop) or self._stepped is not self.system
+
+    @property
+    def trajectory(self) -> Trajectory:
+        """The saved samples so far, and the current state when it is not one of them."""
+        if self._failed is not None:
+            return self._failed.trajectory
+        self._begin(0)
+        return self._trajectory(self._samples.k, True, current=True)
+
+    # -- stepping ------------------------------------------------------------------------------
+    def advance(self, n: int | None = None, *, t: float | None = None, progress: object = False) -> None:
+        """Take ``n`` more steps (or ``t`` more seconds, a whole number of steps; neither: to ``t_end``).
+
+        Returns nothing: read :attr:`state` (a copy) when needed, so a call costs its steps.
+        Raises InstabilityError or ConvergenceError where the
+        run fails (``.trajectory`` keeps the samples before the failing step; the session
+        then stays stopped), SimulationInterrupted on Ctrl-C. ``progress`` as in
+        :func:`mslab.simulate`.
+        """
+        if self._failed is not None:
+            raise ValueError(f"the session stopped at step {self.step}: {self._failed}")
+        count = self._count(n, t)
+        if self.end is not None and self.step + count > self.end:
+            raise ValueError(f"the session ends at step {self.end} (t_end); {count} more steps from "
+                             f"step {self.step} go beyond")
+        if self.integrator.implicit:  # Newton's small solves: threads only cost time (mslab.threads)
+            from mslab.threads import single_threaded_blas
+
+            single_threaded_blas(self._advance)(count, progress)
+        else:
+            self._advance(count, progress)
+
+    def _count(self, n: int | None, t: float | None) -> int:
+        if n is not None and t is not None:
+            raise ValueError("advance takes a number of steps or a time t, not both")
+        if t is not None:
+            return step_count(float(t), self.dt)
+        if n is None:
+            if self.end is None:
+                raise ValueError("advance needs a number of steps or a time t (the session has no t_end)")
+            return self.end - self.step
+        if isinstance(n, bool) or int(n) != n or n < 0:
+            raise ValueError(f"advance takes a whole number of steps >= 0, got {n!r}")
+        return int(n)
+
+    def _begin(self, first: int) -> None:
+        """Choose the loop (``auto``: from the expected steps) and start the method; once."""
+        if self._loop is not None:
+            return
+        expected = self.end if self.end is not None else max(first, HORIZON)
+        runner = fast.stepper(self.system, self.integrator, self.backend, expected, self.scene.state0)
+        self._stepped = self.system  # the implicit methods' compiled path steps their own
+        if runner is not None and runner.view is not None:  # numpy code on a compiled view
+            self._stepped, runner = runner.view, None
+        before, start = self.system.counters.snapshot(), time.perf_counter()
+        state = self.integrator.start(self._stepped, self.scene.state0, self.dt)
+        self._account(before, start)
+        self._samples.add(state.x, state.v, state.dissipated)
+        self._check.start(float(self._samples.energy(1, copy=False).total[0]))
+        if runner is None:
+            self._loop = NumpyLoop(self.integrator, self._stepped, state, self.dt, self._limit)
+        else:
+            self._loop = CompiledLoop(runner, state, self.dt, self._limit)
+
+    def _advance(self, count: int, progress: object) -> None:
+        from mslab.progress import make_progress
+
+        self._begin(count)
+        loop, samples, check = self._loop, self._samples, self._check
+        target = loop.step + count
+        bar, own_bar = make_progress(progress, target - loop.step, self.integrator.name)
+        before, start = self.system.counters.snapshot(), time.perf_counter()
+        try:
+            while loop.step < target:
+                done = loop.step
+                stop = min(target, check.next_due(done), done + loop.chunk)
+                samples.reserve(stop)
+                if not loop.run(stop, samples):
+                    raise FloatingPointError
+                if check.due(loop.step):
+                    self._check_ledger()
+                if bar is not None:
+                    bar.update(loop.step - done)
+        except FloatingPointError:  # step loop.step failed: its work is counted, the run stops there
+            self._account(before, start, bar if own_bar else None)
+            state = loop.state()
+            what = "non-finite" if not state.is_finite() else f"beyond {self.blowup:g} x the scene size"
+            raise self._stop(InstabilityError, f"blew up at step {loop.step}", f"state became {what}"
+                             f"{hint(self.stable_dt)}") from None
+        except _LedgerGrew as grew:
+            self._account(before, start, bar if own_bar else None)
+            ledger = "K + U + D - W_ext" if self.system.driving else "K + U + D"
+            raise self._stop(InstabilityError, f"blew up by step {loop.step}", f"the state stayed finite "
+                             f"but the energy ledger {ledger} {grew}{hint(self.stable_dt)}") from None
+        except StepFailure as err:
+            self._account(before, start, bar if own_bar else None)
+            raise self._stop(ConvergenceError, f"failed at step {loop.step + 1}", str(err),
+                             step=loop.step + 1) from None
+        except KeyboardInterrupt:
+            self._account(before, start, bar if own_bar else None)
+            raise SimulationInterrupted(self._trajectory(samples.k, False, current=False)) from None
+        self._account(before, start, bar if own_bar else None)
+
+    def _check_ledger(self) -> None:
+        loop, system = self._loop, self.system
+        kinetic = float(system.kinetic_energy(loop.v))
+        total = kinetic + float(system.potential_energy(loop.x)) + loop.dissipated
+        if system.driving:
+            total -= float(system.external_work(loop.x, self._samples.x[0]))
+        reason = self._check.check(loop.step, total, kinetic)
+        if reason is not None:
+            raise _LedgerGrew(reason)
+
+    def _account(self, before: dict, start: float, bar: object = None) -> None:
+        """Add the work counted since ``before`` and the time since ``start`` to :attr:`stats`."""
+        stats = self.stats
+        stats.wall_time += time.perf_counter() - start
+        stats.steps = self.step
+        for key, value in self.system.counters.since(before).items():
+            setattr(stats, key, getattr(stats, key) + value)
+        if bar is not None:
+            bar.close()
+
+    def _stop(self, kind: type, what: str, detail: str, step: int | None = None) -> Exception:
+        """Return the error that stops the session at ``step`` (default: the current one)."""
+        step = self.step if step is None else step
+        stats = self.stats
+        stats.steps = step
+        name, dt = self.integrator.name, self.dt
+        keep = int(np.searchsorted(self._samples.steps[: self._samples.k], step - 1, side="right"))
+        err = kind(f"{name} {what} (t = {step * dt:.6g}, dt = {dt:g}): {detail}", method=name, step=step,
+                   t=step * dt, dt=dt, stable_dt=self.stable_dt, trajectory=self._trajectory(keep, False))
+        self._failed = err
+        return err
+
+    def _trajectory(self, k: int, complete: bool, current: bool = False) -> Trajectory:
+        """Return samples ``[0, k)`` (and the current state when ``current`` and it is not saved)."""
+        samples, loop = self._samples, self._loop
+        stats = replace(self.stats)
+        t = samples.steps[:k] * self.dt
+        if current and samples.steps[k - 1] != loop.step:
+            x, v = loop.x, loop.v
+            point = samples.point(x, v, loop.dissipated)
+            energy = samples.energy(k, copy=False)
+            parts = [np.append(p, q) for p, q in zip(
+                (energy.kinetic, energy.potential, energy.dissipated, energy.external), point, strict=True)]
+            return Trajectory(np.append(t, loop.step * self.dt), np.concatenate((samples.x[:k], x[None])),
+                              np.concatenate((samples.v[:k], v[None])), Energy(*parts), stats, complete,
+                              self.scene.name)
+        if k == samples.steps.size:  # the whole declared run: hand the arrays over (memory budget: 1 x)
+            return Trajectory(t, samples.x, samples.v, samples.energy(k, copy=False), stats, complete,
+                              self.scene.name)
+        return Trajectory(t, samples.x[:k].copy(), samples.v[:k].copy(), samples.energy(k, copy=True), stats,
+                          complete, self.scene.name)
+
+
+class _LedgerGrew(Exception):
+    """The ledger check found growth (internal: turned into InstabilityError)."""

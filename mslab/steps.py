@@ -1,0 +1,36 @@
+"""Fixed steps: how many steps of ``dt`` reach ``t_end``, and which of them are saved.
+
+A leaf module (numpy only): the scene settings check a run's ``t_end / dt`` with it, and
+the stepping session counts and saves its steps with it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def check_dt(dt: float) -> float:
+    """Return ``dt`` as a float; ValueError unless it is a finite number > 0."""
+    value = float(dt)
+    if not (np.isfinite(value) and value > 0):
+        raise ValueError(f"dt must be a finite number > 0, got {dt!r}")
+    return value
+
+
+def step_count(t_end: float, dt: float) -> int:
+    """Return the number of fixed steps of size dt that reach t_end exactly; ValueError otherwise."""
+    dt = check_dt(dt)
+    if not (np.isfinite(t_end) and t_end > 0):
+        raise ValueError(f"t_end must be a finite number > 0, got {t_end!r}")
+    ratio = t_end / dt
+    n = max(1, round(ratio))
+    if abs(n - ratio) > 1e-9 * max(1.0, ratio):
+        raise ValueError(f"t_end = {t_end:g} is not a whole number of steps of dt = {dt:g} "
+                         f"({ratio:.4g} steps); use dt = {t_end / n:.6g} ({n} steps)")
+    return n
+
+
+def save_indices(n_steps: int, save_every: int) -> np.ndarray:
+    """Return the saved steps of a run of ``n_steps``: every ``save_every``-th and the last."""
+    idx = np.arange(0, n_steps + 1, save_every, dtype=np.int64)
+    return idx if idx[-1] == n_steps else np.append(idx, np.int64(n_steps))
