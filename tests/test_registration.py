@@ -273,3 +273,23 @@ def test_an_effect_file_may_not_replace_a_built_in_effect(tmp_path):
         for line in list(errors._BROKEN):
             if line.startswith(str(tmp_path)):
                 del errors._BROKEN[line]
+
+
+def test_files_imported_before_the_order_check_is_installed_are_checked_then(tmp_path):
+    """``import mslab`` imports the method files first and installs mslab.derive's check after."""
+    (tmp_path / "early.py").write_text(HEADER + (
+        'register(ExplicitRK([[0]], [1], name="early_ok", order=1))\n'
+        'register(ExplicitRK([[0, 0], [1, 0]], [Fr(1, 2), Fr(1, 2)], name="early_bad", order=3))\n'))
+    check = base._order_check
+    base._order_check = None
+    package.__path__.append(str(tmp_path))
+    try:
+        assert package.discover() == ["early"]
+        assert {"early_ok", "early_bad"} <= set(base._REGISTRY)  # not checked yet
+        base.set_order_check(check)
+        assert not {"early_ok", "early_bad"} & set(base._REGISTRY)  # the whole file is taken out
+        assert f"{tmp_path / 'early.py'}:6: method 'early_bad' declares order 3, but its coefficients have " \
+               "order 2 (mslab.derive.order)" in errors.broken_files()
+    finally:
+        base._order_check = check
+        _cleanup(tmp_path, ["early", "early_ok", "early_bad"])
