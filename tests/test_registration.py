@@ -133,8 +133,10 @@ def test_wrong_files_leave_the_registry_as_it_was(loaded):
 @pytest.mark.parametrize("name", ["rk38", "ralston3", "ruth3", "lobatto_iiic2"])
 def test_registry_wide_tests_accept_correct_methods(loaded, name):
     from tests import test_integrators
+    from tests.hard_cases import test_ledger_order
 
     test_integrators.test_ledger_total_conserved_to_method_order_with_damping(name)
+    test_ledger_order.test_damped_oscillator_ledger_order(name)
     for gamma in (0.0, 0.4):
         test_integrators.test_convergence_order_on_oscillator(name, gamma)
     test_integrators.test_step_mutates_nothing_and_pinned_never_move(name)
@@ -150,6 +152,10 @@ def test_registry_wide_tests_reject_a_wrong_declared_order():
     assert abs(slope - 3) < 0.2 and slope < wrong.order - 0.2
     with pytest.raises(AssertionError):
         test_integrators.check_ledger_order(wrong)
+    from tests.hard_cases import test_ledger_order
+
+    with pytest.raises(AssertionError):
+        test_ledger_order.test_damped_oscillator_ledger_order(wrong)
     test_integrators.check_ledger_order(mslab.ExplicitRK(  # the same tableau declared 3: accepted
         [[0, 0, 0], [Fr(1, 2), 0, 0], [0, Fr(3, 4), 0]], [Fr(2, 9), Fr(1, 3), Fr(4, 9)], name="r3", order=3))
 
