@@ -22,8 +22,8 @@ A sentence is *backed* by an HTML comment inside it or right after its end:
 * ``<!-- no-claim: reason -->`` marks a sentence that is not a measurement (a definition, a
   scene's parameters, a fact of the mathematics derived in an equation).
 
-A comment at the very start of a paragraph or list item (before any text) covers that whole
-block instead of one sentence.
+A comment at the very start of a paragraph, block quote or list item (before any text) covers
+that whole block instead of one sentence. Claim IDs are found as literal ``id="ID"`` arguments and in the stored outputs.
 """
 
 from __future__ import annotations
@@ -56,6 +56,7 @@ MASKS = [
     re.compile(r"<[^>\n]+>"),                                   # html tags
     re.compile(r"^\s{0,3}#.*$", re.MULTILINE),                  # headings
     re.compile(r"^\s*(?:\d+[.)]|[-*+])\s", re.MULTILINE),       # list markers
+    re.compile(r"^\s*>", re.MULTILINE),                        # block quotes
     re.compile(r"\b(?:seed\s+)?(?:eqs?|equations?|lessons?|sections?|exercises?|cells?|chapters?|"
                r"figs?|figures?|items?|issues?|ch)\.?\s*\d[\d.]*(?:\s*(?:[–-]|and|to|,)\s*\d[\d.]*)*",
                re.IGNORECASE),                                  # citations: eq. 3, lessons 04-05
@@ -65,7 +66,7 @@ MASKS = [
 ABBREVIATIONS = re.compile(r"\b(?:e\.g|i\.e|vs|cf|approx|etc|eqs?|resp|no)\.", re.IGNORECASE)
 SENTENCE_END = re.compile(r"[.!?:;](?=\s+[^a-z\s])|\n\s*\n|\n(?=\s*(?:\d+[.)]|[-*+])\s)")
 DIGIT = re.compile(r"\d")
-LEAD_COMMENT = re.compile(r"\s*(?:(?:\d+[.)]|[-*+])\s+)?(?:\*\*)?\s*<!--\s*(?:no-)?claim\s*:")
+LEAD_COMMENT = re.compile(r"\s*(?:>\s*)?(?:(?:\d+[.)]|[-*+])\s+)?(?:\*\*)?\s*<!--\s*(?:no-)?claim\s*:")
 
 
 @dataclass
@@ -129,7 +130,7 @@ def claim_ids(nb: nbformat.NotebookNode) -> tuple[set[str], set[str]]:
         for out in cell.get("outputs", []):
             text = out.get("text", "") if out.get("output_type") == "stream" else ""
             holding |= set(re.findall(r"claim holds: \[([\w.\-]+)\]", text))
-    return defined, holding
+    return defined | holding, holding
 
 
 def check_markdown(path: Path, index: int, text: str, defined: set[str], holding: set[str]) -> list[Finding]:
