@@ -23,7 +23,8 @@ A sentence is *backed* by an HTML comment inside it or right after its end:
   scene's parameters, a fact of the mathematics derived in an equation).
 
 A comment at the very start of a paragraph, block quote or list item (before any text) covers
-that whole block instead of one sentence. Claim IDs are found as literal ``id="ID"`` arguments and in the stored outputs.
+that whole block instead of one sentence. Claim IDs are found as literal ``id="ID"`` arguments
+and in the stored outputs.
 """
 
 from __future__ import annotations
