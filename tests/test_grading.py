@@ -66,9 +66,9 @@ def released(tmp_path_factory) -> Path:
     return dest
 
 
-def test_eight_exercises_each_with_text_source_and_tests():
+def test_twelve_exercises_each_with_text_source_and_tests():
     exercises = find_exercises(SOURCE)
-    assert len(exercises) == 8
+    assert len(exercises) == 12
     for ex in exercises:
         assert (ex.folder / "README.md").is_file(), ex.name
         assert set(ex.tests) == {"test_public.py", "test_hidden.py"}, ex.name

@@ -47,7 +47,8 @@ def test_kinetic_and_potential_energy_of_a_moving_chain(student):
 
 @pytest.mark.points(2)
 def test_the_ledger_of_a_damped_chain_balances_along_rk4(student):
-    # RK4 at a small step is nearly exact: K + U + D must stay constant (to the O(dt^2) of the trapezoidal booking)
+    # RK4 at a small step is nearly exact: K + U + D must stay constant
+    # (to the O(dt^2) of the trapezoidal booking)
     prob = problem("chain", n=4, dim=2, stiffness=30.0, gamma=0.5, sag=0.1)
     v0 = np.random.default_rng(2).normal(size=prob.x0.shape) * (~prob.pinned)[:, None]
     dt = 1e-3

@@ -35,11 +35,13 @@ def test_choice_from_runs_measured_by_the_library_reaches_the_target(student):
     for target in (1e-3, 1e-7):
         expected = reference_choice(runs, target, t_end)
         got = student.cheapest(runs, target, t_end)
-        assert (got[0], int(got[1]), int(got[2])) == expected, f"target {target:g}: {got}, expected {expected}"
+        assert (got[0], int(got[1]), int(got[2])) == expected, \
+            f"target {target:g}: {got}, expected {expected}"
     # the tight target's choice, run at its predicted steps, reaches the target (within the model's factor 2)
     name, n_steps, _ = expected
     check = convergence(scene, [name], [t_end / n_steps], t_end=t_end)
-    assert check.records[0]["error"] < 2e-7, f"{name} at {n_steps} steps: error {check.records[0]['error']:.2e}"
+    error = check.records[0]["error"]
+    assert error < 2e-7, f"{name} at {n_steps} steps: error {error:.2e}"
 
 
 @pytest.mark.points(1)
@@ -50,7 +52,8 @@ def test_the_start_up_evaluation_decides_a_tie(student):
     runs = {"leapfrog": dict(same, start_evals=1), "symplectic_euler_2": dict(same, start_evals=0)}
     name, n_steps, n_force = student.cheapest(runs, 1e-4, 2.0)
     assert name == "symplectic_euler_2", f"chose {name!r}: leapfrog pays one more evaluation to start"
-    assert int(n_force) == int(n_steps) == 110, f"(n_steps, n_force) = {(n_steps, n_force)}, expected (110, 110)"
+    assert int(n_force) == int(n_steps) == 110, \
+        f"(n_steps, n_force) = {(n_steps, n_force)}, expected (110, 110)"
 
 
 @pytest.mark.points(2)
@@ -63,8 +66,10 @@ def test_a_table_drawn_at_grading(student):
         C = float(10 ** rng.uniform(-2, 1))
         dts = [0.1, 0.05, 0.025]
         runs[f"method_{k}"] = {"dts": dts, "errors": [C * h**p * (1 + 0.05 * rng.normal()) for h in dts],
-                               "evals_per_step": int(rng.integers(1, 5)), "start_evals": int(rng.integers(0, 2))}
+                               "evals_per_step": int(rng.integers(1, 5)),
+                               "start_evals": int(rng.integers(0, 2))}
     target = float(10 ** rng.uniform(-7, -2))
     expected = reference_choice(runs, target, t_end)
     got = student.cheapest(runs, target, t_end)
-    assert (got[0], int(got[1]), int(got[2])) == expected, f"target {target:.2e}: {got}, expected {expected}"
+    assert (got[0], int(got[1]), int(got[2])) == expected, \
+        f"target {target:.2e}: {got}, expected {expected}"
