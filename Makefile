@@ -23,6 +23,12 @@ test: $(STAMP)
 	$(VENV)/bin/ruff check .
 	$(PY) -m pytest -q -n 2 --dist loadfile tests
 	$(PY) -m pytest -q -p no:randomly --nbval --nbval-current-env --nbval-sanitize-with lessons/sanitize.cfg lessons/
+	$(PY) tools/lessons_check.py
+
+# markdown sentences with a number or verdict that no claim of the notebook backs (tools/lessons_check.py)
+.PHONY: lessons-check
+lessons-check: $(STAMP)
+	$(PY) tools/lessons_check.py
 
 # re-execute every lesson in place (stored outputs then match the library; nbval checks them)
 lessons: $(STAMP)
