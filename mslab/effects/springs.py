@@ -25,7 +25,6 @@ if TYPE_CHECKING:  # scipy.sparse is imported on first use: `import mslab` stays
     import scipy.sparse as sp
 
 
-
 def scatter_pairs(f: np.ndarray, i: np.ndarray, j: np.ndarray, n: int) -> np.ndarray:
     """Sum pair forces ``+f`` onto particles ``i`` and ``-f`` onto ``j`` -> (n, dim)."""
     out = np.empty((n, f.shape[1]))
