@@ -27,7 +27,8 @@ docs: $(STAMP)
 test: $(STAMP) docs
 	$(VENV)/bin/ruff check .
 	$(PY) -m pytest -q -n 2 --dist loadfile tests
-	$(PY) -m pytest -q -p no:randomly --nbval --nbval-current-env --nbval-sanitize-with lessons/sanitize.cfg lessons/
+	$(PY) -m pytest -q -n 2 --dist loadfile -p no:randomly --nbval --nbval-current-env --nbval-sanitize-with lessons/sanitize.cfg lessons/
+	$(PY) tools/lessons_check.py
 	$(MAKE) --no-print-directory test-emulated
 
 # An emulated other CPU (README, "Testing on any machine"): numpy's runtime dispatch without
@@ -45,9 +46,14 @@ EMULATED_TESTS := tests/test_implicit_cloth.py tests/test_newton_matrix.py tests
 
 test-emulated: $(STAMP)
 	$(EMULATED_CPU) $(PY) -m pytest -q -n 2 --dist loadfile -p no:cacheprovider $(EMULATED_TESTS)
-	$(EMULATED_CPU) $(PY) -m pytest -q -p no:randomly -p no:cacheprovider --nbval --nbval-current-env \
+	$(EMULATED_CPU) $(PY) -m pytest -q -n 2 --dist loadfile -p no:randomly -p no:cacheprovider --nbval --nbval-current-env \
 		--nbval-sanitize-with lessons/sanitize.cfg lessons/
 	rm -rf $(EMULATED_CACHE)
+
+# markdown sentences with a number or verdict that no claim of the notebook backs (tools/lessons_check.py)
+.PHONY: lessons-check
+lessons-check: $(STAMP)
+	$(PY) tools/lessons_check.py
 
 # re-execute every lesson in place (stored outputs then match the library; nbval checks them)
 lessons: $(STAMP)

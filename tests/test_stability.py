@@ -396,3 +396,21 @@ def test_imag_limit_of_high_degree_polynomials(name, given):
     assert abs(limit - truth) < 1e-9
     y = np.linspace(0.0, limit, 2001)
     assert np.abs(st.amplification(ours, 1j * y)).max() <= 1 + 1e-12
+
+
+def test_damped_stiff_spring_gives_forward_euler_its_small_step():
+    """|1 + h lam| <= 1 on lam = -g/2 +- i sqrt(k/m - g^2/4) is h <= g m / k (far below the scan)."""
+    b = mslab.SceneBuilder(dim=1)
+    p = b.add_particle([0.0], mass=1.0, pinned=True)
+    q = b.add_particle([1.0], mass=1.0)
+    b.add_spring(p, q, stiffness=1e6)
+    b.add_damping(gamma=1.0)
+    scene = b.build()
+    gamma, k = 1.0, 1e6
+    assert mslab.stability.max_stable_dt(scene, "euler") == pytest.approx(gamma / k, rel=1e-9)
+    # undamped, forward Euler has no stable step at all
+    b2 = mslab.SceneBuilder(dim=1)
+    p = b2.add_particle([0.0], mass=1.0, pinned=True)
+    q = b2.add_particle([1.0], mass=1.0)
+    b2.add_spring(p, q, stiffness=1e6)
+    assert mslab.stability.max_stable_dt(b2.build(), "euler") == 0.0

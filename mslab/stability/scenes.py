@@ -19,11 +19,13 @@ import scipy.sparse.linalg as spla
 from mslab.integrators.base import Integrator, get_method
 from mslab.scene import Scene
 from mslab.stability.functions import amplification
-from mslab.stability.limits import _ray_limit, oscillator_limit
+from mslab.stability.limits import S_MIN, _ray_limit, oscillator_limit
 from mslab.state import State
 from mslab.threads import single_threaded_blas
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from mslab.system import System
 
 
@@ -140,7 +142,33 @@ def _dt_limit(m: Integrator, lam: np.ndarray) -> float:
         z = s[:, None] * unit[None, :]
         return np.max(np.abs(amplification(m, z)), axis=1)
 
-    return _ray_limit(rho) / top
+    limit = _ray_limit(rho)
+    if limit == 0.0:  # unstable at S_MIN, yet damping may leave a small stable step
+        limit = _small_limit(rho)
+    return limit / top
+
+
+def _small_limit(rho: Callable[[np.ndarray], np.ndarray], smallest: float = 1e-12) -> float:
+    """Largest ``s < S_MIN`` with ``rho <= 1`` on the ray (0 when none down to ``smallest``).
+
+    A method whose stability region touches the imaginary axis only at 0 (forward Euler,
+    Heun) is stable on a damped mode ``lam = -zeta w + i w sqrt(1 - zeta^2)`` for small
+    steps only: forward Euler for ``dt <= 2 zeta / w``, which on a lightly damped stiff scene
+    is far below the scan's ``S_MIN``. Stable here means ``rho <= 1`` with no tolerance:
+    near ``s = 0`` the margin ``1 - rho`` is of order ``zeta s``, not round-off.
+    """
+    grid = np.geomspace(S_MIN, smallest, 241)  # descending
+    stable = np.flatnonzero(rho(grid) <= 1.0)
+    if stable.size == 0:
+        return 0.0
+    lo, hi = grid[stable[0]], grid[stable[0] - 1]
+    while hi - lo > 1e-13 * hi:
+        mid = 0.5 * (lo + hi)
+        if rho(np.array([mid]))[0] <= 1.0:
+            lo = mid
+        else:
+            hi = mid
+    return float(lo)
 
 
 #: per System: eigenvalues and limits by (contacts, state bytes[, method]); scenes are not mutated
