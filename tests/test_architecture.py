@@ -57,10 +57,6 @@ KNOWN_UPWARD: dict[tuple[str, str], str] = {
         "the run's pre-check asks the analysis for the predicted stable dt (its StabilityWarning and the "
         "InstabilityError's message): pass the prediction in from above, or move the step-limit "
         "check to a caller (the command line, Simulation's constructor in a higher layer)",
-    ("integrators/base.py", "derive/__init__.py"):
-        "register() derives the order of a user's method (issue 23: a declared order that disagrees "
-        "is refused) with mslab.derive, imported inside the function so sympy loads for user files "
-        "only: an order-check hook that derive installs would remove the edge",
     # the one jit helper (a leaf) is mslab/fast/jit.py, but importing it runs fast/__init__.py,
     # which imports the compiled loops, the integrators and the effects: a circle
     ("effects/springs.py", "fast/__init__.py"):
