@@ -46,7 +46,7 @@ GOOD = {
 #: wrong method files -> what their one line must say
 BAD = {
     "clash": ('x = 1\nregister(ExplicitRK([[0]], [1], name="rk4", order=1))\n',
-              [":6: method name 'rk4' is already registered by ", "explicit_tableaux.py"]),
+              [":6: method name 'rk4' of ", "clash.py is already registered by ", "explicit_tableaux.py"]),
     "ralston_order4": (f'register(ExplicitRK({RALSTON}, name="ralston_order4", order=4))\n',
                        [":5: method 'ralston_order4' declares order 4, but its coefficients have order 3"]),
     "lobatto_order3": (f'register(ImplicitRK({LOBATTO}, name="lobatto_order3", order=3))\n',
@@ -181,10 +181,10 @@ def test_same_file_registers_again_but_no_other_file_replaces(tmp_path):
         (tmp_path / "other_again.py").write_text(HEADER + again)
         package.__path__.append(str(tmp_path))
         package.discover()
-        with pytest.warns(errors.BrokenFileWarning, match="other_again.py:5: method name 'again'"):
+        with pytest.warns(errors.BrokenFileWarning, match="other_again.py:5: method name 'again' of "):
             assert mslab.get_method("again") is second
-        assert any("other_again.py:5: method name 'again' is already registered by " + __file__ in line
-                   for line in errors.broken_files())
+        assert any(f"other_again.py:5: method name 'again' of {tmp_path / 'other_again.py'} is already "
+                   f"registered by {__file__}" in line for line in errors.broken_files())
     finally:
         _cleanup(tmp_path, ["again", "other_again"])
 
@@ -267,7 +267,8 @@ def test_an_effect_file_may_not_replace_a_built_in_effect(tmp_path):
     try:
         effect_registry.discover()
         lines = [ln for ln in errors.broken_files() if ln.startswith(str(tmp_path))]
-        head = f"{tmp_path / 'my_springs.py'}:5: effect name 'springs' is already registered by "
+        head = (f"{tmp_path / 'my_springs.py'}:5: effect name 'springs' of {tmp_path / 'my_springs.py'} is "
+                "already registered by ")
         assert len(lines) == 1 and lines[0].startswith(head)
         assert "mslab/effects/springs.py" in lines[0]
         with pytest.warns(errors.BrokenFileWarning):

@@ -35,8 +35,8 @@ def register(cls: type[Effect]) -> type[Effect]:
         raise ValueError(f"{cls.__name__}: set the class attribute 'name'")
     old = _registry.get(cls.name)
     if old is not None and old.__module__ != cls.__module__:
-        raise ValueError(f"effect name {cls.name!r} is already registered by {_file(old)}: choose another "
-                         f"name (built-in and other files' effects are never replaced)")
+        raise ValueError(f"effect name {cls.name!r} of {_file(cls)} is already registered by {_file(old)}: "
+                         f"choose another name (built-in and other files' effects are never replaced)")
     for method in cls.builder_methods:
         if not callable(getattr(cls, method, None)):
             raise ValueError(f"{cls.__name__}: builder method '{method}' is not defined on the class")

@@ -164,8 +164,8 @@ def _check_name(name: str, origin: tuple[str, bool]) -> None:
     before = _ORIGIN.get(name, ("<unknown>", False))
     if before[0] == origin[0] or (before[1] and origin[1]):
         return
-    raise ValueError(f"method name {name!r} is already registered by {before[0]}: choose another name "
-                     f"(built-in and other files' methods are never replaced)")
+    raise ValueError(f"method name {name!r} of {origin[0]} is already registered by {before[0]}: choose "
+                     f"another name (built-in and other files' methods are never replaced)")
 
 
 def _close_to(value: float, target: float, scale: float) -> bool:
