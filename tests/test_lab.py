@@ -1,0 +1,467 @@
+"""The lessons as a student meets them: JupyterLab in headless Chromium (issue 27).
+
+JupyterLab (the venv's) is started on 127.0.0.1 with a random port and token, on a temporary copy
+of ``lessons/`` (the repository's notebooks are never touched), with a fresh Jupyter data directory,
+so every lesson is *untrusted*, as in a student's clone. Each lesson is opened in headless Chromium
+(Debian's ``chromium`` and ``chromium-driver``, driven by selenium), then Kernel > Restart Kernel and
+Run All Cells. Checked, per lesson:
+
+- opened: not marked modified (the stored kernelspec and language_info are the kernel's), no MathJax
+  error and no TeX left untypeset, every stored image shows, every animation shows a frame;
+- after Run All: no traceback and no stderr output, no raw repr (``<function ...>``,
+  ``np.float64(...)``) printed, the same image and MathJax checks, every widget a real widget;
+- every interactive widget moved to every corner of its controls' ranges (dropdown: first and last
+  option, slider: Home and End keys) redraws without an error or a raw value.
+
+Lesson defects that other changes fix are expected failures naming the lesson (``KNOWN``); remove
+an entry when its fix lands. Skipped, with the reason, where Chromium, chromedriver, selenium or
+JupyterLab is missing (``.ci/run`` installs the Debian packages). JupyterLab, its kernels and the
+browser are stopped by their PIDs in the fixtures' teardown, also when a test fails.
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+import os
+import secrets
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+from pathlib import Path
+
+import nbformat
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+LESSONS = sorted((ROOT / "lessons").glob("[0-9][0-9]_*.ipynb"))
+BROWSERS = ("chromium", "chromium-browser", "google-chrome")
+DRIVERS = ("chromedriver", "chromium-driver")
+CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                  "--disable-dev-shm-usage", "--disable-extensions", "--window-size=1400,1000")
+
+#: lesson -> the defect of issue 27 it still shows; xfail(strict=False) until its fix is merged
+KNOWN = {
+    "01_euler_taylor": "item 3: the slider raises InstabilityError (euler, few steps); item 4: raw "
+                       "values (a dict of np.float64, <function ...>) under the widget",
+    "02_heun_midpoint_rk4": "item 2: MathJax error, '_' of rk4_half_last_stage in \\text{...}",
+    "03_verlet_leapfrog": "item 5: to_jshtml animation shows no frame untrusted (use animation_image)",
+    "04_implicit_euler": "item 5: to_jshtml animation shows no frame untrusted, and stays blank after "
+                         "Run All (use animation_image)",
+    "05_dahlquist_stability": "item 5: to_jshtml animation shows no frame untrusted (use animation_image)",
+    "08_penalty_collisions": "item 5: to_jshtml animation shows no frame untrusted (use animation_image)",
+    "10_your_own_integrator": "item 4: <function region_view(...)> printed under the widget",
+}
+
+LAB_TEST_JS = r"""
+window.labTest = (() => {
+  const sleep = ms => new Promise(r => setTimeout(r, ms));
+  let panel = null, seen = [], executed = 0, errored = 0;
+  const kernel = () => panel.sessionContext.session?.kernel;
+  const idle = () => kernel()?.status === 'idle';
+  async function until(cond, what, seconds) {
+    const end = Date.now() + seconds * 1000;
+    while (!cond()) { if (Date.now() > end) throw new Error('timed out: ' + what); await sleep(100); }
+  }
+  const cellOf = node => panel.content.widgets.findIndex(w => w.node.contains(node));
+  function leftoverTeX() {
+    const bits = [];
+    panel.node.querySelectorAll('.jp-RenderedMarkdown, .jp-RenderedLatex').forEach(n => {
+      const c = n.cloneNode(true);
+      c.querySelectorAll('pre, code, mjx-container, mjx-assistive-mml').forEach(x => x.remove());
+      const m = c.textContent.match(/\$\$[^$]+\$\$|\$[^$\s][^$\n]*?\$/g);
+      if (m) bits.push([cellOf(n), m[0].slice(0, 60)]);
+    });
+    return bits;
+  }
+  const isAnimated = src => /^data:image\/(gif|webp)/.test(src)
+    || (src.startsWith('data:image/png') && atob(src.slice(22, 22 + 4000)).includes('acTL'));
+  async function images() {
+    const out = [];
+    for (const img of panel.content.node.querySelectorAll('.jp-Cell-outputArea img')) {
+      img.scrollIntoView({block: 'center'});
+      await new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)));
+      await img.decode().catch(() => null);
+      out.push({cell: cellOf(img), animation: !!img.closest('.animation') || isAnimated(img.src),
+                shown: img.naturalWidth > 0 && img.offsetWidth > 0,
+                naturalWidth: img.naturalWidth, offsetWidth: img.offsetWidth});
+    }
+    return out;
+  }
+  async function report() {
+    const cells = panel.content.widgets, outputs = [];
+    cells.forEach((c, i) => { if (c.model.type === 'code') {
+      c.model.outputs.toJSON().forEach(o => outputs.push([i, c.model.getMetadata('tags') || [], o])); } });
+    const text = o => [].concat(o.text || (o.data || {})['text/plain'] || []).join('');
+    const widgetCells = [...new Set(outputs.filter(([, , o]) =>
+      (o.data || {})['application/vnd.jupyter.widget-view+json']).map(([i]) => i))];
+    return {
+      dirty: panel.context.model.dirty,
+      mathErrors: [...panel.node.querySelectorAll('mjx-merror, merror, .MathJax_Error')].map(e =>
+        [cellOf(e), e.getAttribute('data-mjx-error') || e.textContent.slice(0, 80)]),
+      leftoverTeX: leftoverTeX(),
+      images: await images(),
+      errors: outputs.filter(([, tags, o]) => !tags.includes('raises-exception') && (o.output_type === 'error'
+        || (o.output_type === 'stream' && o.name === 'stderr'))).map(([i, , o]) =>
+        [i, o.ename ? `${o.ename}: ${o.evalue}`.slice(0, 200) : o.text.slice(0, 200)]),
+      raw: outputs.filter(([, , o]) => o.output_type !== 'stream' && RAW.test(text(o))).map(([i, , o]) =>
+        [i, text(o).slice(0, 80)]),
+      widgetCells,
+      deadWidgets: widgetCells.filter(i => !cells[i].node.querySelector('.jupyter-widgets:not(.jupyter-widgets-error)')
+        || /Error displaying widget|Loading widget/.test(cells[i].node.textContent)),
+    };
+  }
+  const RAW = /^<(function|bound method)|object at 0x|np\.(float|int)\d+\(/m;
+  async function open(path) {
+    await jupyterapp.restored;
+    panel = await jupyterapp.commands.execute('docmanager:open', {path});
+    await panel.context.ready; await panel.sessionContext.ready; await panel.revealed;
+    await until(() => kernel() && idle(), 'the kernel to start', 120);
+    await kernel().info; await kernel().spec; await sleep(0);   // JupyterLab updates the metadata
+    await until(() => leftoverTeX().length === 0, 'MathJax to typeset', 60).catch(() => null);
+    return report();
+  }
+  function restartRunAll() {
+    seen = []; executed = 0; errored = 0;
+    panel.sessionContext.statusChanged.connect((_, s) => { seen.push(s); });
+    panel.sessionContext.iopubMessage.connect((_, m) => {
+      if (m.header.msg_type === 'execute_input') executed += 1;
+      if (m.header.msg_type === 'error') errored += 1; });
+    jupyterapp.commands.execute('notebook:restart-run-all');
+    return true;
+  }
+  async function waitRun(seconds) {
+    const code = panel.content.widgets.filter(c => c.model.type === 'code' && c.model.sharedModel.getSource().trim());
+    const queued = () => code.some(c => (c.node.querySelector('.jp-InputPrompt')?.textContent || '').includes('*'));
+    await until(() => seen.includes('restarting') && idle() && !queued() && (executed >= code.length || errored > 0),
+                'Restart Kernel and Run All Cells', seconds);
+    await until(() => leftoverTeX().length === 0, 'MathJax to typeset', 60).catch(() => null);
+    return report();
+  }
+  function interacts() { return [...panel.content.node.querySelectorAll('.widget-interact')]; }
+  function watch(box) {
+    const out = box.querySelector('.widget-output');
+    window.__changes = 0;
+    if (window.__observer) window.__observer.disconnect();
+    window.__observer = new MutationObserver(m => { window.__changes += m.length; });
+    window.__observer.observe(out, {childList: true, subtree: true, characterData: true});
+  }
+  async function redrawn(box, seconds) {
+    await until(() => window.__changes > 0 && idle(), 'the widget to redraw', seconds);
+    const out = box.querySelector('.widget-output');
+    const shown = [...out.querySelectorAll('.jp-OutputArea-output')];
+    return {
+      errors: shown.filter(o => /stderr|error/.test(o.dataset.mimeType || '')).map(o => o.textContent.slice(-300)),
+      raw: shown.filter(o => o.dataset.mimeType === 'text/plain').map(o => o.textContent.slice(0, 80)),
+      empty: shown.length === 0,
+    };
+  }
+  async function close() {
+    if (!panel) return true;
+    await panel.sessionContext.shutdown().catch(() => null);
+    panel.dispose(); panel = null;
+    return true;
+  }
+  return {open, report, restartRunAll, waitRun, interacts, watch, redrawn, close};
+})();
+"""
+
+
+def _which(names: tuple[str, ...]) -> str | None:
+    return next((path for name in names if (path := shutil.which(name))), None)
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _stop(pid: int, children: list[int], timeout: float = 15.0) -> None:
+    """Stop a process group we started (SIGTERM, then SIGKILL), then any child PID still alive."""
+    for sig in (signal.SIGTERM, signal.SIGKILL):
+        try:
+            os.killpg(pid, sig)
+        except ProcessLookupError:
+            break
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            try:
+                if os.waitpid(pid, os.WNOHANG)[0]:
+                    break
+            except ChildProcessError:
+                break
+            time.sleep(0.1)
+        else:
+            continue
+        break
+    for child in children:
+        try:
+            os.kill(child, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+
+
+def _children(pid: int) -> list[int]:
+    try:
+        import psutil
+
+        return [p.pid for p in psutil.Process(pid).children(recursive=True)]
+    except Exception:   # psutil missing or the process gone: nothing more to stop
+        return []
+
+
+@pytest.fixture(scope="module")
+def tools() -> dict:
+    pytest.importorskip("selenium", reason="selenium is not installed (pip install -e '.[dev]')")
+    pytest.importorskip("jupyterlab", reason="JupyterLab is not installed (pip install -e '.[dev]')")
+    pytest.importorskip("ipywidgets", reason="ipywidgets is not installed (pip install -e '.[lessons]')")
+    browser, driver = _which(BROWSERS), _which(DRIVERS)
+    if browser is None or driver is None:
+        pytest.skip("no Chromium or no chromedriver on this machine (Debian: apt-get install chromium "
+                    "chromium-driver; .ci/run does it)")
+    return {"browser": browser, "driver": driver}
+
+
+@pytest.fixture(scope="module")
+def lab(tools, tmp_path_factory):
+    """JupyterLab on a copy of lessons/, 127.0.0.1, random port and token; stopped by PID."""
+    home = tmp_path_factory.mktemp("lab")
+    root = home / "root"
+    shutil.copytree(ROOT / "lessons", root / "lessons")
+    settings = home / "settings" / "@jupyterlab" / "apputils-extension"
+    settings.mkdir(parents=True)
+    (settings / "notification.jupyterlab-settings").write_text(
+        json.dumps({"fetchNews": "false", "checkForUpdates": False}))
+    port, token = _free_port(), secrets.token_hex(16)
+    bin_dir = Path(sys.executable).parent
+    jupyter = bin_dir / "jupyter"
+    command = [str(jupyter)] if jupyter.exists() else [sys.executable, "-m", "jupyter"]
+    env = dict(os.environ, PATH=f"{bin_dir}{os.pathsep}{os.environ.get('PATH', '')}",
+               PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])),
+               JUPYTER_CONFIG_DIR=str(home / "config"), JUPYTER_DATA_DIR=str(home / "data"),
+               JUPYTER_RUNTIME_DIR=str(home / "runtime"), IPYTHONDIR=str(home / "ipython"),
+               JUPYTERLAB_SETTINGS_DIR=str(home / "settings"),
+               JUPYTERLAB_WORKSPACES_DIR=str(home / "workspaces"))
+    log = (home / "jupyterlab.log").open("w")
+    proc = subprocess.Popen(
+        [*command, "lab", "--ServerApp.open_browser=False", "--ServerApp.ip=127.0.0.1",
+         f"--ServerApp.port={port}", "--ServerApp.port_retries=0", f"--IdentityProvider.token={token}",
+         f"--ServerApp.root_dir={root}", "--LabApp.expose_app_in_browser=True",
+         "--LabApp.news_url=None", "--LabApp.check_for_updates_class=jupyterlab.NeverCheckForUpdate",
+         "--allow-root"],
+        env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+    children: list[int] = []
+    try:
+        url = f"http://127.0.0.1:{port}"
+        deadline = time.monotonic() + 90
+        while True:
+            try:
+                with urllib.request.urlopen(f"{url}/api/status?token={token}", timeout=5) as answer:
+                    if answer.status == 200:
+                        break
+            except OSError:
+                pass
+            if proc.poll() is not None or time.monotonic() > deadline:
+                pytest.fail(f"JupyterLab did not start: {(home / 'jupyterlab.log').read_text()[-2000:]}")
+            time.sleep(0.2)
+        yield {"url": url, "token": token, "root": root,
+               "remember_children": lambda: children.extend(_children(proc.pid))}
+    finally:
+        children.extend(_children(proc.pid))   # its kernels
+        _stop(proc.pid, children)
+        log.close()
+
+
+@pytest.fixture(scope="module")
+def page(tools, lab, tmp_path_factory):
+    """Headless Chromium (started here, stopped by PID) with JupyterLab loaded, driven by selenium."""
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    profile = tmp_path_factory.mktemp("chromium-profile")
+    proc = subprocess.Popen([tools["browser"], *CHROMIUM_FLAGS, f"--user-data-dir={profile}",
+                             "--remote-debugging-port=0", "about:blank"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    service, driver, children = None, None, []
+    try:
+        port_file = profile / "DevToolsActivePort"
+        deadline = time.monotonic() + 30
+        while not (port_file.exists() and port_file.read_text().strip()):
+            if time.monotonic() > deadline or proc.poll() is not None:
+                pytest.fail("Chromium did not open its DevTools port within 30 s")
+            time.sleep(0.1)
+        options = webdriver.ChromeOptions()
+        options.debugger_address = f"127.0.0.1:{port_file.read_text().split()[0]}"
+        service = Service(executable_path=tools["driver"])
+        driver = webdriver.Chrome(service=service, options=options)
+        driver.set_script_timeout(300)
+        driver.get(f"{lab['url']}/lab?token={lab['token']}")
+        deadline = time.monotonic() + 90
+        while not driver.execute_script("return !!(window.jupyterapp && window.jupyterapp.shell)"):
+            if time.monotonic() > deadline:
+                pytest.fail("JupyterLab did not load in Chromium within 90 s")
+            time.sleep(0.2)
+        driver.execute_script(LAB_TEST_JS)
+        yield driver
+    finally:
+        children.extend(_children(proc.pid))
+        if service is not None and service.process is not None:
+            _stop_driver(service)
+        _stop(proc.pid, children)
+
+
+def _stop_driver(service) -> None:
+    pid = service.process.pid
+    try:
+        os.kill(pid, signal.SIGTERM)
+        service.process.wait(timeout=10)
+    except (ProcessLookupError, subprocess.TimeoutExpired):
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+
+
+def _call(driver, name: str, *args):
+    """Run ``labTest.name(*args)`` in the page and return its (awaited) result."""
+    result = driver.execute_async_script(
+        "const done = arguments[arguments.length - 1];"
+        f"Promise.resolve(window.labTest.{name}(...[...arguments].slice(0, -1)))"
+        ".then(done, e => done({jsError: String(e)}));", *args)
+    if isinstance(result, dict) and "jsError" in result:
+        raise AssertionError(f"{name}: {result['jsError']}")
+    return result
+
+
+def _problems(report: dict, when: str) -> list[str]:
+    found = []
+    if report["dirty"] and when == "opened":
+        found.append(f"{when}: the notebook is marked modified")
+    found += [f"{when}: cell {c}: MathJax error {e!r}" for c, e in report["mathErrors"]]
+    found += [f"{when}: cell {c}: TeX left untypeset {t!r}" for c, t in report["leftoverTeX"]]
+    for img in report["images"]:
+        if not img["shown"]:
+            what = "animation shows no frame" if img["animation"] else "image not shown"
+            found.append(f"{when}: cell {img['cell']}: {what} (natural width {img['naturalWidth']}, "
+                         f"shown width {img['offsetWidth']})")
+    return found
+
+
+def _exercise_widgets(driver) -> list[str]:
+    """Move every interactive widget through the corners of its controls' ranges."""
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.common.keys import Keys
+    from selenium.webdriver.support.select import Select
+
+    found = []
+    for k, box in enumerate(_call(driver, "interacts")):
+        controls = (box.find_elements(By.CSS_SELECTOR, ".widget-dropdown select")
+                    + box.find_elements(By.CSS_SELECTOR, ".widget-slider .noUi-handle"))
+
+        def value(c):
+            return c.get_attribute("value") if c.tag_name == "select" else c.get_attribute("aria-valuenow")
+
+        def move(c, high: bool):
+            driver.execute_script("arguments[0].scrollIntoView({block: 'center'})", c)
+            if c.tag_name == "select":
+                options = Select(c)
+                options.select_by_index(len(options.options) - 1 if high else 0)
+            else:
+                c.send_keys(Keys.END if high else Keys.HOME)
+
+        corner = [False] * len(controls)
+        steps = [(i, False) for i in range(len(controls))]           # every control to its low end
+        for n in range(1, 2 ** len(controls)):                         # then every corner (Gray code)
+            flip = (n & -n).bit_length() - 1
+            corner[flip] = not corner[flip]
+            steps.append((flip, corner[flip]))
+        for i, high in steps:
+            before = value(controls[i])
+            driver.execute_script("window.labTest.watch(arguments[0])", box)
+            move(controls[i], high)
+            if value(controls[i]) == before:
+                continue
+            state = ", ".join(f"{value(c)}" for c in controls)
+            seen = _call(driver, "redrawn", box, 60)
+            where = f"widget {k} at ({state})"
+            found += [f"{where}: error output ...{e.strip()[-200:]!r}" for e in seen["errors"]]
+            found += [f"{where}: raw value printed {r!r}" for r in seen["raw"]]
+            if seen["empty"]:
+                found.append(f"{where}: the output is empty")
+    return found
+
+
+def _lesson_params() -> list:
+    return [pytest.param(p, id=p.stem, marks=[pytest.mark.xfail(strict=False, reason=KNOWN[p.stem])]
+                         if p.stem in KNOWN else []) for p in LESSONS]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("lesson", _lesson_params())
+def test_lesson_in_jupyterlab(lesson: Path, lab, page) -> None:
+    path = f"lessons/{lesson.name}"
+    try:
+        opened = _call(page, "open", path)
+        found = _problems(opened, "opened")
+        page.execute_script("window.labTest.restartRunAll()")
+        from selenium.webdriver.common.by import By
+        from selenium.webdriver.support.ui import WebDriverWait
+
+        WebDriverWait(page, 30).until(
+            lambda d: d.find_elements(By.CSS_SELECTOR, ".jp-Dialog .jp-mod-accept"))[0].click()
+        ran = _call(page, "waitRun", 240)
+        lab["remember_children"]()
+        found += _problems(ran, "after Run All")
+        found += [f"after Run All: cell {c}: {e}" for c, e in ran["errors"]]
+        found += [f"after Run All: cell {c}: raw value printed {r!r}" for c, r in ran["raw"]]
+        found += [f"after Run All: cell {c}: widget not live" for c in ran["deadWidgets"]]
+        found += _exercise_widgets(page)
+    finally:
+        _call(page, "close")
+    assert not found, f"{lesson.name}:\n  " + "\n  ".join(found)
+
+
+def test_animated_png_plays_untrusted(lab, page) -> None:
+    """An ``animation_image`` output in an untrusted notebook shows a frame and plays (frames change)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+    from matplotlib.animation import FuncAnimation
+
+    from mslab.plots import animation_png
+
+    fig, ax = plt.subplots(figsize=(3, 2), dpi=60)
+    (dot,) = ax.plot([0.0], [0.0], "o", ms=20)
+    ax.set(xlim=(-1.2, 1.2), ylim=(-1.2, 1.2))
+    frames = 8
+    anim = FuncAnimation(fig, lambda k: dot.set_data([np.cos(k * np.pi / 4)], [np.sin(k * np.pi / 4)]),
+                         frames=frames)
+    data = animation_png(anim, fps=8)
+    plt.close(fig)
+    nb = nbformat.v4.new_notebook(metadata={"kernelspec": {"name": "python3", "display_name": ""}})
+    nb.cells = [nbformat.v4.new_code_cell("display(animation_image(anim))", outputs=[
+        nbformat.v4.new_output("display_data", data={"image/png": base64.b64encode(data).decode(),
+                                                     "text/plain": "<IPython.core.display.Image object>"})])]
+    nbformat.write(nb, lab["root"] / "scratch_animation.ipynb")
+    try:
+        opened = _call(page, "open", "scratch_animation.ipynb")
+        assert [(i["animation"], i["shown"]) for i in opened["images"]] == [(True, True)], opened["images"]
+        # the frame on screen changes: screenshots of the image until two differ (a canvas cannot
+        # tell: drawImage of an animated image draws its first frame, by the HTML standard)
+        from selenium.webdriver.common.by import By
+
+        img = page.find_element(By.CSS_SELECTOR, ".jp-NotebookPanel:not(.lm-mod-hidden) .jp-OutputArea-output img")
+        first, changed, deadline = img.screenshot_as_png, False, time.monotonic() + 20
+        while not changed and time.monotonic() < deadline:
+            changed = img.screenshot_as_png != first
+        assert changed, "the animated PNG shows one frame only (it does not play)"
+    finally:
+        _call(page, "close")
