@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint lessons site bench clean venv
+.PHONY: demo test lint lessons lab site bench clean venv
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -23,6 +23,15 @@ test: $(STAMP)
 	$(VENV)/bin/ruff check .
 	$(PY) -m pytest -q -n 2 --dist loadfile tests
 	$(PY) -m pytest -q -p no:randomly --nbval --nbval-current-env --nbval-sanitize-with lessons/sanitize.cfg lessons/
+
+# the lessons in JupyterLab (file browser on lessons/, the repository as its root folder), the venv
+# active in its terminals (`pytest`, `mslab` there are the venv's): bash reads the user's ~/.bashrc,
+# which may put another Python first on PATH (pyenv, conda), and then the venv's activate script.
+lab: $(STAMP)
+	printf '[ -f ~/.bashrc ] && . ~/.bashrc\n. "%s/bin/activate"\n' "$(CURDIR)/$(VENV)" > $(VENV)/lab.bashrc
+	PATH="$(CURDIR)/$(VENV)/bin:$$PATH" VIRTUAL_ENV="$(CURDIR)/$(VENV)" $(VENV)/bin/jupyter lab \
+	    --ServerApp.root_dir="$(CURDIR)" --LabApp.default_url=/lab/tree/lessons \
+	    --ServerApp.terminado_settings=shell_command="bash --rcfile $(CURDIR)/$(VENV)/lab.bashrc"
 
 # re-execute every lesson in place (stored outputs then match the library; nbval checks them)
 lessons: $(STAMP)
