@@ -41,6 +41,7 @@ ROOT = Path(__file__).resolve().parents[1]
 LESSONS = sorted((ROOT / "lessons").glob("[0-9][0-9]_*.ipynb"))
 BROWSERS = ("chromium", "chromium-browser", "google-chrome")
 DRIVERS = ("chromedriver", "chromium-driver")
+MARKER = "lab-test-root.txt"
 CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
                   "--disable-background-networking", "--disable-component-update", "--disable-sync",
                   "--disable-dev-shm-usage", "--disable-extensions", "--window-size=1400,1000")
@@ -69,52 +70,62 @@ window.labTest = (() => {
     while (!cond()) { if (Date.now() > end) throw new Error('timed out: ' + what); await sleep(100); }
   }
   const cellOf = node => panel.content.widgets.findIndex(w => w.node.contains(node));
-  function leftoverTeX() {
+  function leftoverTeX(root) {
     const bits = [];
-    panel.node.querySelectorAll('.jp-RenderedMarkdown, .jp-RenderedLatex').forEach(n => {
+    root.querySelectorAll('.jp-RenderedMarkdown, .jp-RenderedLatex').forEach(n => {
       const c = n.cloneNode(true);
       c.querySelectorAll('pre, code, mjx-container, mjx-assistive-mml').forEach(x => x.remove());
       const m = c.textContent.match(/\$\$[^$]+\$\$|\$[^$\s][^$\n]*?\$/g);
-      if (m) bits.push([cellOf(n), m[0].slice(0, 60)]);
+      if (m) bits.push(m[0].slice(0, 60));
     });
     return bits;
   }
   const isAnimated = src => /^data:image\/(gif|webp)/.test(src)
     || (src.startsWith('data:image/png') && atob(src.slice(22, 22 + 4000)).includes('acTL'));
-  async function images() {
-    const out = [];
-    for (const img of panel.content.node.querySelectorAll('.jp-Cell-outputArea img')) {
-      img.scrollIntoView({block: 'center'});
-      await new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)));
+  const frame = () => new Promise(r => requestAnimationFrame(r));
+  async function visit(i) {
+    // scroll the cell into view, as a reader does: JupyterLab renders cells (and typesets their
+    // formulas) as they come near the viewport
+    await panel.content.scrollToItem(i, 'center').catch(() => null);
+    const cell = panel.content.widgets[i];
+    await cell.ready; await frame();
+    return cell.node;
+  }
+  async function look(i, found) {
+    const node = await visit(i);
+    await until(() => leftoverTeX(node).length === 0, 'MathJax to typeset', 20).catch(() => null);
+    leftoverTeX(node).forEach(t => found.leftoverTeX.push([i, t]));
+    const errors = new Set([...node.querySelectorAll('mjx-merror, .MathJax_Error')].map(e =>
+      e.getAttribute('data-mjx-error') || e.textContent.slice(0, 80)));
+    errors.forEach(e => found.mathErrors.push([i, e]));
+    for (const img of node.querySelectorAll('.jp-Cell-outputArea img')) {
       await img.decode().catch(() => null);
-      out.push({cell: cellOf(img), animation: !!img.closest('.animation') || isAnimated(img.src),
-                shown: img.naturalWidth > 0 && img.offsetWidth > 0,
-                naturalWidth: img.naturalWidth, offsetWidth: img.offsetWidth});
+      found.images.push({cell: i, animation: !!img.closest('.animation') || isAnimated(img.src),
+                         shown: img.naturalWidth > 0 && img.offsetWidth > 0,
+                         naturalWidth: img.naturalWidth, offsetWidth: img.offsetWidth});
     }
-    return out;
+    const code = panel.content.widgets[i].model.type === 'code';
+    if (code && panel.content.widgets[i].model.outputs.toJSON().some(o =>
+        (o.data || {})['application/vnd.jupyter.widget-view+json'])) {
+      found.widgetCells.push(i);
+      if (!node.querySelector('.jupyter-widgets:not(.jupyter-widgets-error)')
+          || /Error displaying widget|Loading widget/.test(node.textContent)) found.deadWidgets.push(i);
+    }
   }
   async function report() {
     const cells = panel.content.widgets, outputs = [];
     cells.forEach((c, i) => { if (c.model.type === 'code') {
       c.model.outputs.toJSON().forEach(o => outputs.push([i, c.model.getMetadata('tags') || [], o])); } });
     const text = o => [].concat(o.text || (o.data || {})['text/plain'] || []).join('');
-    const widgetCells = [...new Set(outputs.filter(([, , o]) =>
-      (o.data || {})['application/vnd.jupyter.widget-view+json']).map(([i]) => i))];
-    return {
-      dirty: panel.context.model.dirty,
-      mathErrors: [...panel.node.querySelectorAll('mjx-merror, merror, .MathJax_Error')].map(e =>
-        [cellOf(e), e.getAttribute('data-mjx-error') || e.textContent.slice(0, 80)]),
-      leftoverTeX: leftoverTeX(),
-      images: await images(),
-      errors: outputs.filter(([, tags, o]) => !tags.includes('raises-exception') && (o.output_type === 'error'
-        || (o.output_type === 'stream' && o.name === 'stderr'))).map(([i, , o]) =>
-        [i, o.ename ? `${o.ename}: ${o.evalue}`.slice(0, 200) : o.text.slice(0, 200)]),
-      raw: outputs.filter(([, , o]) => o.output_type !== 'stream' && RAW.test(text(o))).map(([i, , o]) =>
-        [i, text(o).slice(0, 80)]),
-      widgetCells,
-      deadWidgets: widgetCells.filter(i => !cells[i].node.querySelector('.jupyter-widgets:not(.jupyter-widgets-error)')
-        || /Error displaying widget|Loading widget/.test(cells[i].node.textContent)),
-    };
+    const found = {dirty: panel.context.model.dirty, mathErrors: [], leftoverTeX: [], images: [],
+                   widgetCells: [], deadWidgets: []};
+    for (let i = 0; i < cells.length; i++) await look(i, found);
+    const failed = o => o.output_type === 'error' || (o.output_type === 'stream' && o.name === 'stderr');
+    found.errors = outputs.filter(([, tags, o]) => !tags.includes('raises-exception') && failed(o)).map(
+      ([i, , o]) => [i, o.ename ? `${o.ename}: ${o.evalue}`.slice(0, 200) : o.text.slice(0, 200)]);
+    found.raw = outputs.filter(([, , o]) => o.output_type !== 'stream' && RAW.test(text(o))).map(([i, , o]) =>
+        [i, text(o).slice(0, 80)]);
+    return found;
   }
   const RAW = /^<(function|bound method)|object at 0x|np\.(float|int)\d+\(/m;
   async function open(path) {
@@ -123,7 +134,6 @@ window.labTest = (() => {
     await panel.context.ready; await panel.sessionContext.ready; await panel.revealed;
     await until(() => kernel() && idle(), 'the kernel to start', 120);
     await kernel().info; await kernel().spec; await sleep(0);   // JupyterLab updates the metadata
-    await until(() => leftoverTeX().length === 0, 'MathJax to typeset', 60).catch(() => null);
     return report();
   }
   function restartRunAll() {
@@ -136,14 +146,26 @@ window.labTest = (() => {
     return true;
   }
   async function waitRun(seconds) {
-    const code = panel.content.widgets.filter(c => c.model.type === 'code' && c.model.sharedModel.getSource().trim());
-    const queued = () => code.some(c => (c.node.querySelector('.jp-InputPrompt')?.textContent || '').includes('*'));
-    await until(() => seen.includes('restarting') && idle() && !queued() && (executed >= code.length || errored > 0),
+    const code = panel.content.widgets.filter(c => c.model.type === 'code'
+                                              && c.model.sharedModel.getSource().trim());
+    const queued = () => code.some(c => c.model.executionState === 'running');
+    const finished = () => executed >= code.length || errored > 0;   // Run All stops at an error
+    await until(() => seen.includes('restarting') && idle() && !queued() && finished(),
                 'Restart Kernel and Run All Cells', seconds);
-    await until(() => leftoverTeX().length === 0, 'MathJax to typeset', 60).catch(() => null);
     return report();
   }
-  function interacts() { return [...panel.content.node.querySelectorAll('.widget-interact')]; }
+  async function interacts() {
+    const boxes = [];
+    for (let i = 0; i < panel.content.widgets.length; i++) {
+      if (!panel.content.widgets[i].node.querySelector('.widget-interact')) {
+        if (!panel.content.widgets[i].model.outputs?.toJSON().some(o =>
+            (o.data || {})['application/vnd.jupyter.widget-view+json'])) continue;
+        await visit(i);
+      }
+      boxes.push(...panel.content.widgets[i].node.querySelectorAll('.widget-interact'));
+    }
+    return boxes;
+  }
   function watch(box) {
     const out = box.querySelector('.widget-output');
     window.__changes = 0;
@@ -156,7 +178,8 @@ window.labTest = (() => {
     const out = box.querySelector('.widget-output');
     const shown = [...out.querySelectorAll('.jp-OutputArea-output')];
     return {
-      errors: shown.filter(o => /stderr|error/.test(o.dataset.mimeType || '')).map(o => o.textContent.slice(-300)),
+      errors: shown.filter(o => /stderr|error/.test(o.dataset.mimeType || ''))
+        .map(o => o.textContent.slice(-300)),
       raw: shown.filter(o => o.dataset.mimeType === 'text/plain').map(o => o.textContent.slice(0, 80)),
       empty: shown.length === 0,
     };
@@ -239,23 +262,26 @@ def lab(tools, tmp_path_factory):
     (settings / "notification.jupyterlab-settings").write_text(
         json.dumps({"fetchNews": "false", "checkForUpdates": False}))
     port, token = _free_port(), secrets.token_hex(16)
-    bin_dir = Path(sys.executable).parent
-    jupyter = bin_dir / "jupyter"
-    command = [str(jupyter)] if jupyter.exists() else [sys.executable, "-m", "jupyter"]
-    env = dict(os.environ, PATH=f"{bin_dir}{os.pathsep}{os.environ.get('PATH', '')}",
+    venv = Path(sys.prefix)
+    if shutil.which("make") is None or not (venv / "bin" / "jupyter").exists():
+        pytest.skip(f"`make lab` needs make and {venv}/bin/jupyter")
+    (root / MARKER).write_text("JupyterLab's root folder is the test's copy\n")
+    env = dict(os.environ,
                PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])),
                JUPYTER_CONFIG_DIR=str(home / "config"), JUPYTER_DATA_DIR=str(home / "data"),
                JUPYTER_RUNTIME_DIR=str(home / "runtime"), IPYTHONDIR=str(home / "ipython"),
                JUPYTERLAB_SETTINGS_DIR=str(home / "settings"),
                JUPYTERLAB_WORKSPACES_DIR=str(home / "workspaces"))
     log = (home / "jupyterlab.log").open("w")
+    # the students' command, `make lab`, with this venv (installed: no STAMP), on the copy
+    args = ["--ServerApp.open_browser=False", "--ServerApp.ip=127.0.0.1", f"--ServerApp.port={port}",
+            "--ServerApp.port_retries=0", f"--IdentityProvider.token={token}", f"--ServerApp.root_dir={root}",
+            "--LabApp.expose_app_in_browser=True", "--LabApp.news_url=None",
+            "--LabApp.check_for_updates_class=jupyterlab.NeverCheckForUpdate", "--allow-root"]
     proc = subprocess.Popen(
-        [*command, "lab", "--ServerApp.open_browser=False", "--ServerApp.ip=127.0.0.1",
-         f"--ServerApp.port={port}", "--ServerApp.port_retries=0", f"--IdentityProvider.token={token}",
-         f"--ServerApp.root_dir={root}", "--LabApp.expose_app_in_browser=True",
-         "--LabApp.news_url=None", "--LabApp.check_for_updates_class=jupyterlab.NeverCheckForUpdate",
-         "--allow-root"],
-        env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+        ["make", "-s", "-C", str(ROOT), "lab", f"VENV={venv}", "STAMP=", f"LAB_RC={home / 'lab.bashrc'}",
+         f"LAB_ARGS={' '.join(args)}"],
+        env=env, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True)
     children: list[int] = []
     try:
         url = f"http://127.0.0.1:{port}"
@@ -270,7 +296,9 @@ def lab(tools, tmp_path_factory):
             if proc.poll() is not None or time.monotonic() > deadline:
                 pytest.fail(f"JupyterLab did not start: {(home / 'jupyterlab.log').read_text()[-2000:]}")
             time.sleep(0.2)
-        yield {"url": url, "token": token, "root": root,
+        with urllib.request.urlopen(f"{url}/api/contents/{MARKER}?token={token}", timeout=10) as answer:
+            assert answer.status == 200     # never the repository's own lessons/
+        yield {"url": url, "token": token, "root": root, "home": home,
                "remember_children": lambda: children.extend(_children(proc.pid))}
     finally:
         children.extend(_children(proc.pid))   # its kernels
@@ -353,14 +381,17 @@ def _problems(report: dict, when: str) -> list[str]:
     return found
 
 
-def _exercise_widgets(driver) -> list[str]:
+def _exercise_widgets(driver, widget_cells: list[int]) -> list[str]:
     """Move every interactive widget through the corners of its controls' ranges."""
     from selenium.webdriver.common.by import By
     from selenium.webdriver.common.keys import Keys
     from selenium.webdriver.support.select import Select
 
     found = []
-    for k, box in enumerate(_call(driver, "interacts")):
+    boxes = _call(driver, "interacts")
+    if len(boxes) < len(widget_cells):
+        found.append(f"after Run All: {len(widget_cells)} cells show widgets, {len(boxes)} interactive found")
+    for k, box in enumerate(boxes):
         controls = (box.find_elements(By.CSS_SELECTOR, ".widget-dropdown select")
                     + box.find_elements(By.CSS_SELECTOR, ".widget-slider .noUi-handle"))
 
@@ -421,7 +452,7 @@ def test_lesson_in_jupyterlab(lesson: Path, lab, page) -> None:
         found += [f"after Run All: cell {c}: {e}" for c, e in ran["errors"]]
         found += [f"after Run All: cell {c}: raw value printed {r!r}" for c, r in ran["raw"]]
         found += [f"after Run All: cell {c}: widget not live" for c in ran["deadWidgets"]]
-        found += _exercise_widgets(page)
+        found += _exercise_widgets(page, ran["widgetCells"])
     finally:
         _call(page, "close")
     assert not found, f"{lesson.name}:\n  " + "\n  ".join(found)
@@ -458,10 +489,39 @@ def test_animated_png_plays_untrusted(lab, page) -> None:
         # tell: drawImage of an animated image draws its first frame, by the HTML standard)
         from selenium.webdriver.common.by import By
 
-        img = page.find_element(By.CSS_SELECTOR, ".jp-NotebookPanel:not(.lm-mod-hidden) .jp-OutputArea-output img")
+        img = page.find_element(By.CSS_SELECTOR,
+                                ".jp-NotebookPanel:not(.lm-mod-hidden) .jp-OutputArea-output img")
         first, changed, deadline = img.screenshot_as_png, False, time.monotonic() + 20
         while not changed and time.monotonic() < deadline:
             changed = img.screenshot_as_png != first
         assert changed, "the animated PNG shows one frame only (it does not play)"
     finally:
         _call(page, "close")
+
+
+def test_exercise_tests_pass_in_jupyterlab_terminal(lab) -> None:
+    """In JupyterLab's terminal (``make lab``) ``pytest`` is the venv's: an exercise's tests pass."""
+    import re
+
+    websocket = pytest.importorskip("websocket", reason="websocket-client (a jupyter dependency) is missing")
+    exercises = lab["home"] / "exercises"
+    shutil.copytree(ROOT / "exercises", exercises, ignore=shutil.ignore_patterns("__pycache__"))
+    request = urllib.request.Request(f"{lab['url']}/api/terminals?token={lab['token']}", method="POST",
+                                     data=b"{}", headers={"Content-Type": "application/json"})
+    with urllib.request.urlopen(request, timeout=30) as answer:
+        name = json.load(answer)["name"]
+    ws = websocket.create_connection(
+        f"ws://{lab['url'].split('//')[1]}/terminals/websocket/{name}?token={lab['token']}",
+        suppress_origin=True, timeout=180)
+    try:
+        ws.send(json.dumps(["stdin", f"cd {exercises} && echo PYTEST=$(command -v pytest) && "
+                                     "pytest 02_euler_steps; echo EXIT=$?\r"]))
+        out, deadline = "", time.monotonic() + 180
+        while not re.search(r"EXIT=\d+", out) and time.monotonic() < deadline:
+            message = json.loads(ws.recv())
+            if message[0] == "stdout":
+                out += message[1].replace("EXIT=$?", "")
+    finally:
+        ws.close()
+    assert f"PYTEST={Path(sys.prefix) / 'bin' / 'pytest'}" in out, out[-2000:]
+    assert "EXIT=0" in out and " passed" in out and "Error" not in out, out[-2000:]
