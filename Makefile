@@ -27,13 +27,14 @@ test: $(STAMP)
 # the lessons in JupyterLab (file browser on lessons/, the repository as its root folder), the venv
 # active in its terminals (`pytest`, `mslab` there are the venv's): bash reads the user's ~/.bashrc,
 # which may put another Python first on PATH (pyenv, conda), and then the venv's activate script.
-# tests/test_lab.py starts it so (LAB_ARGS: its port, token and a temporary root folder).
+# tests/test_lab.py starts it so (LAB_ROOT: a copy of the lessons; LAB_ARGS: its port and token).
+LAB_ROOT ?= $(CURDIR)
 LAB_RC ?= $(VENV)/lab.bashrc
 LAB_ARGS ?=
 lab: $(STAMP)
 	printf '[ -f ~/.bashrc ] && . ~/.bashrc\n. "%s/bin/activate"\n' "$(abspath $(VENV))" > $(LAB_RC)
 	PATH="$(abspath $(VENV))/bin:$$PATH" VIRTUAL_ENV="$(abspath $(VENV))" $(VENV)/bin/jupyter lab \
-	    --ServerApp.root_dir="$(CURDIR)" --LabApp.default_url=/lab/tree/lessons \
+	    --ServerApp.root_dir="$(LAB_ROOT)" --LabApp.default_url=/lab/tree/lessons \
 	    --ServerApp.terminado_settings=shell_command="bash --rcfile $(abspath $(LAB_RC))" $(LAB_ARGS)
 
 # re-execute every lesson in place (stored outputs then match the library; nbval checks them)
