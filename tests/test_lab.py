@@ -47,17 +47,7 @@ CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic
                   "--disable-dev-shm-usage", "--disable-extensions", "--window-size=1400,1000")
 
 #: lesson -> the defect of issue 27 it still shows; xfail(strict=False) until its fix is merged
-KNOWN = {
-    "01_euler_taylor": "item 3: the slider raises InstabilityError (euler, few steps); item 4: raw "
-                       "values (a dict of np.float64, <function ...>) under the widget",
-    "02_heun_midpoint_rk4": "item 2: MathJax error, '_' of rk4_half_last_stage in \\text{...}",
-    "03_verlet_leapfrog": "item 5: to_jshtml animation shows no frame untrusted (use animation_image)",
-    "04_implicit_euler": "item 5: to_jshtml animation shows no frame untrusted, and stays blank after "
-                         "Run All (use animation_image)",
-    "05_dahlquist_stability": "item 5: to_jshtml animation shows no frame untrusted (use animation_image)",
-    "08_penalty_collisions": "item 5: to_jshtml animation shows no frame untrusted (use animation_image)",
-    "10_your_own_integrator": "item 4: <function region_view(...)> printed under the widget",
-}
+KNOWN: dict[str, str] = {}
 
 #: the page helpers (window.labTest), injected into JupyterLab
 LAB_TEST_JS = Path(__file__).with_name("lab_page.js").read_text()
