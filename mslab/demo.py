@@ -11,6 +11,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 import warnings
 from pathlib import Path
@@ -23,8 +24,11 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import mslab  # noqa: E402
+from mslab import interrupts  # noqa: E402
 from mslab.commands.common import save_figure  # noqa: E402
+from mslab.fast import jit  # noqa: E402
 from mslab.plots import plot_energy_error  # noqa: E402
+from mslab.progress import compile_notice  # noqa: E402
 from mslab.scenes import chain  # noqa: E402
 
 
@@ -114,17 +118,35 @@ def volume_tour(out: Path) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the three tours into ``--out`` (default ``out/``); return the exit code."""
+    """Run the three tours into ``--out`` (default ``out/``); return the exit code.
+
+    Compilations are announced on stderr; Ctrl-C ends with exit code 130 and one line, at any
+    moment (the files written before it are complete).
+    """
     parser = argparse.ArgumentParser(description="mslab tour")
     parser.add_argument("--out", default="out")
     args = parser.parse_args(argv)
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    chain_tour(out)
-    cloth_tour(out)
-    volume_tour(out)
-    print(f"All outputs are in {out}/")
-    return 0
+    announcer = jit.announce_with(compile_notice)
+    with interrupts.command_line():
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+            chain_tour(out)
+            cloth_tour(out)
+            volume_tour(out)
+            print(f"All outputs are in {out}/")
+            code = 0
+        except KeyboardInterrupt:
+            interrupts.finishing()
+            sys.stdout.flush()
+            print(f"mslab: interrupted; the files written so far in {out}/ are complete", file=sys.stderr)
+            code = interrupts.EXIT_INTERRUPTED
+        except SystemExit as stop:  # the cloth tour's command ended early (interrupted: 130)
+            code = int(stop.code or 0)
+        finally:
+            interrupts.finishing()
+            jit.announce_with(announcer)
+    return interrupts.leave(code)
 
 
 if __name__ == "__main__":
