@@ -43,6 +43,7 @@ from contextlib import contextmanager
 EXIT_INTERRUPTED = 130
 
 _state = {"cli": False, "raised": False, "process": False}
+_exiting = threading.Lock()  # held by the one thread that ends the process
 _protected: list[str] = []  # what the protected sections in progress are doing (outermost first)
 
 
@@ -62,6 +63,7 @@ def exit_now(what: str | None = None) -> None:
     ``os._exit``: no Python code runs after it (no half-finished cleanup can print a traceback);
     files are never half-written because every output is written under a temporary name first.
     """
+    _exiting.acquire()  # the watcher thread and the handler may both get here: one line only
     line = "mslab: interrupted" + (f" while {what}" if what else "") + "\n"
     try:
         os.write(2, line.encode())

@@ -24,7 +24,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def mslab_cmd(*args, cwd=None, **kwargs) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "mslab", *map(str, args)], capture_output=True, text=True,
-                          cwd=cwd, timeout=120, env={**os.environ, "PYTHONPATH": str(ROOT)}, **kwargs)
+                          cwd=cwd, timeout=900, env={**os.environ, "PYTHONPATH": str(ROOT)}, **kwargs)
 
 
 @pytest.mark.parametrize("command", ["run", "validate"])

@@ -58,7 +58,7 @@ def test_atomic_write_keeps_an_existing_files_mode(tmp_path):
 # -- helpers -----------------------------------------------------------------------------------------
 def mslab_cmd(*args, **kwargs) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "mslab", *map(str, args)], capture_output=True, text=True,
-                          timeout=300, env={**os.environ, "PYTHONPATH": str(ROOT)}, **kwargs)
+                          timeout=900, env={**os.environ, "PYTHONPATH": str(ROOT)}, **kwargs)
 
 
 def no_run(monkeypatch):
