@@ -6,7 +6,7 @@ temporary name and renamed), but numba does not: an interrupt raised while it co
 loads compiled code from its cache, lands in its finalisers ("Exception ignored ...
 KeyboardInterrupt", the Ctrl-C lost) or leaves a half-built library behind ("RuntimeError:
 no compiled object yet"). Such work is therefore *protected* (:func:`protected`, used by
-:mod:`mslab.fast.jit` and by ``import mslab`` on the command line):
+:mod:`mslab.fast.jit` around every compilation or cache load and the import of numba):
 
 * on the command line (:func:`command_line`, around ``mslab`` and ``make demo``), Ctrl-C in a
   protected section ends the process at once with exit code 130 and one line
@@ -14,7 +14,8 @@ no compiled object yet"). Such work is therefore *protected* (:func:`protected`,
   written before is complete (atomic writes). Elsewhere it raises ``KeyboardInterrupt``
   (the run stops, keeps its samples and saves them; a Ctrl-C while saving leaves the files
   already complete and removes the one being written); once the command has its answer
-  (:func:`finishing`), a Ctrl-C ends the process the same way;
+  (:func:`finishing`), and while ``import mslab`` runs (:func:`starting`), a Ctrl-C ends
+  the process the same way;
 * in a program or notebook (Python's own SIGINT handler), Ctrl-C in a protected section
   is held until the section ends and then raised as ``KeyboardInterrupt``.
 
@@ -25,9 +26,10 @@ For tests, ``MSLAB_TEST_INTERRUPT=PHASE`` makes the process send itself SIGINT w
 that phase (:func:`phase`: ``import``, ``loading numba``, ``compiling`` (or loading from the
 cache), ``stepping``, ``saving``), so a test meets every phase without timing anything.
 
-A protected section also wakes a watcher thread, so the process ends at once even while
-numba is inside one long call to LLVM (Python runs signal handlers only between its own
-instructions).
+On the command line a watcher thread also wakes on SIGINT (Python's wakeup descriptor), so
+a protected section ends at once even while numba is inside one long call to LLVM (Python
+runs signal handlers only between its own instructions). The few milliseconds of the
+interpreter's own start, before ``mslab`` is imported, are Python's.
 """
 
 from __future__ import annotations

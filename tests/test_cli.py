@@ -162,6 +162,23 @@ def test_ctrl_c_in_every_phase_ends_with_130_and_one_line(tmp_path, phase, cold,
         assert last == f"mslab: interrupted while writing the outputs; complete files: {out / 'chain.npz'}"
 
 
+def test_ctrl_c_in_a_program_is_held_until_the_compilation_is_through():
+    """In a program (Python's own handler), a Ctrl-C during protected work is raised after it, not inside."""
+    from mslab import interrupts
+
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)  # as in a plain program
+    done = []
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            with interrupts.protected("compiling a test"):
+                os.kill(os.getpid(), signal.SIGINT)
+                done.extend(range(3))  # the section runs to its end
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert done == [0, 1, 2]
+    assert signal.getsignal(signal.SIGINT) is previous
+
+
 def test_ctrl_c_from_outside_ends_with_130_and_one_line(tmp_path):
     """A real SIGINT from another process, sent once the run announces itself: whatever it interrupts
     (the stability analysis, compiling or loading, stepping, saving), exit 130 and one line."""
