@@ -182,7 +182,7 @@ class Springs(Effect):
 
     def compiled_jacobians(self, x: np.ndarray, v: np.ndarray) -> tuple[sp.csr_matrix, sp.csr_matrix | None]:
         """:meth:`jacobians` through :func:`spring_jacobian_kernel` (compiled by numba on first use)."""
-        from mslab.fast.jit import compiled
+        from mslab.jit import compiled
 
         dim = x.shape[1]
         m = self.i.shape[0]

@@ -1,4 +1,4 @@
-"""The local step of the fast mass-spring method, compiled with numba on first use.
+"""The local step of the fast mass-spring method, compiled on first use (:func:`mslab.jit.compiled`).
 
 Each spring ``q = (i, j)`` with stiffness ``k`` and rest length ``L`` is projected onto its
 rest length: ``d_q = L (x_i - x_j) / |x_i - x_j|`` (the closest vector of length ``L`` to
@@ -11,8 +11,6 @@ the stiffness-weighted graph Laplacian, the local step is the spring force in di
 from __future__ import annotations
 
 import numpy as np
-
-_COMPILED = None
 
 
 def projections_py(x: np.ndarray, i: np.ndarray, j: np.ndarray, stiffness: np.ndarray,
@@ -37,7 +35,7 @@ def projections_py(x: np.ndarray, i: np.ndarray, j: np.ndarray, stiffness: np.nd
 
 def projections(x: np.ndarray, i: np.ndarray, j: np.ndarray, stiffness: np.ndarray,
                 rest_length: np.ndarray, out: np.ndarray) -> None:
-    """Run the local step, compiled (``numba.njit(cache=True)``) on the first call.
+    """Run the local step, compiled (:func:`mslab.jit.compiled`) on the first call.
 
     Parameters
     ----------
@@ -47,9 +45,7 @@ def projections(x: np.ndarray, i: np.ndarray, j: np.ndarray, stiffness: np.ndarr
     out : ndarray, shape (n_particles, dim)
         ``J d`` is added to it.
     """
-    global _COMPILED
-    if _COMPILED is None:
-        import numba
+    from mslab.jit import compiled
 
-        _COMPILED = numba.njit(cache=True, fastmath=False)(projections_py)
-    _COMPILED(x, i, j, stiffness, rest_length, out)
+    local_step = compiled(projections_py, "the local step of fast_mass_spring", fastmath=False)
+    local_step(x, i, j, stiffness, rest_length, out)
