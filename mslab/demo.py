@@ -5,7 +5,7 @@
 2. The cloth under implicit Euler (``mslab run cloth --animate gif``): data, figures and
    an animation.
 3. The volume-collapse pair: the same soft cube with and without shear springs dropped on
-   a plane; the one without shear springs loses its volume (seed section 2.8).
+   a plane; the one without shear springs loses its volume (lecture notes, §2.8).
 """
 
 from __future__ import annotations

@@ -100,7 +100,7 @@ def _kick_with(xf, vf, af, h, hd, limit):
 
 def run_explicit_rk(x, v, dissipated, A, b, dt, step, n_steps, saved, k, xs, vs, ds, limit,
                     w, f0, params):
-    """Take steps of an explicit Runge-Kutta tableau (seed eqs. 16-20), ``y = (x, v)``, ``F = (v, a)``.
+    """Take steps of an explicit Runge-Kutta tableau (notes, eqs. 16-20), ``y = (x, v)``, ``F = (v, a)``.
 
     ``Y_s = y_n + h sum_{r<s} A_sr K_r``, ``y_{n+1} = y_n + h sum_s b_s K_s``; the dissipated
     work gets the weights ``b`` too. ``kx[s]`` is the stage velocity, ``kv[s]`` its acceleration.
@@ -255,7 +255,7 @@ def run_splitting(x, v, dissipated, drift, kick, reuse, kA, kb, mem_a, mem_p,
 
 def run_two_step(method, x, v, dissipated, mem_x, mem_a, mem_p, dt, step, n_steps, saved, k,
                  xs, vs, ds, limit, velocity_dependent, w, f0, params):
-    """Take steps of Verlet and leapfrog (``mslab/integrators/two_step.py``, seed eqs. 21-26).
+    """Take steps of Verlet and leapfrog (``mslab/integrators/two_step.py``, eqs. 21-26 of the lecture notes).
 
     One force evaluation ``a = a(X, V)`` per step:
 
