@@ -54,6 +54,15 @@ def size_text(n_bytes: float) -> str:
     return f"{value:.3g} TB"
 
 
+def count_text(n: int) -> str:
+    """Write a count as people read it: ``"4000"``, and ``"4e+300"`` rather than 301 digits."""
+    digits = str(abs(int(n)))
+    if len(digits) <= 9:
+        return str(int(n))
+    sign = "-" if n < 0 else ""
+    return f"{sign}{digits[0]}.{digits[1:3]}e+{len(digits) - 1}".replace(".00e", "e")
+
+
 def available_memory() -> int | None:
     """Bytes of memory available to a new computation (``MemAvailable``), or None if unknown."""
     try:
@@ -104,8 +113,8 @@ class RunCost:
 
     def describe(self) -> str:
         """``"2000 steps, 201 saved samples (save_every 10): 48 kB of saved data"``."""
-        return (f"{self.steps} steps, {self.n_saved} saved samples (save_every {self.save_every}): "
-                f"{size_text(self.bytes_saved)} of saved data")
+        return (f"{count_text(self.steps)} steps, {count_text(self.n_saved)} saved samples (save_every "
+                f"{count_text(self.save_every)}): {size_text(self.bytes_saved)} of saved data")
 
     def as_dict(self) -> dict:
         """Return the cost as plain data (for JSON)."""
@@ -142,14 +151,15 @@ def memory_problem(cost: RunCost, budget: int | None, budget_name: str = "") -> 
         return None
     per = cost.bytes_per_sample
     fits = budget // per  # samples that fit
-    what = (f"the saved data would need {size_text(cost.bytes_saved)} ({cost.n_saved} samples of "
-            f"{cost.n_particles} particles), over the memory budget of {size_text(budget)}"
+    what = (f"the saved data would need {size_text(cost.bytes_saved)} ({count_text(cost.n_saved)} samples of "
+            f"{count_text(cost.n_particles)} particles), over the memory budget of {size_text(budget)}"
             f"{f' ({budget_name})' if budget_name else ''}")
     if fits < 2:
         return f"{what}; even two samples do not fit: raise --max-memory or use a smaller scene"
     every = math.ceil(cost.steps / (fits - 2)) if fits > 2 else cost.steps
     longest = (fits - 1) * cost.save_every * cost.dt
-    return (f"{what}; use save_every >= {every} or t_end <= {longest:.6g} (or raise --max-memory)")
+    return (f"{what}; use save_every >= {count_text(every)} or t_end <= {longest:.6g} "
+            f"(or raise --max-memory)")
 
 
 def time_per_step(scene: Scene, method: str | Integrator | None = None, dt: float | None = None, *,

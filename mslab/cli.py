@@ -11,7 +11,7 @@ import importlib
 import sys
 
 from mslab.commands.common import CommandError
-from mslab.errors import MslabError
+from mslab.errors import MslabError, take_broken
 
 #: subcommand modules in mslab.commands, in the order ``mslab --help`` lists them
 COMMANDS = ("scenes", "methods", "run", "compare", "precision", "stability", "validate", "grade", "release",
@@ -27,6 +27,9 @@ def build_parser() -> argparse.ArgumentParser:
     """Return the ``mslab`` parser with every subcommand of :data:`COMMANDS`."""
     parser = _Parser(prog="mslab",
                      description="Mass-spring systems: integrators, stability, accuracy vs cost.")
+    from mslab import __version__
+
+    parser.add_argument("--version", action="version", version=f"mslab {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for name in COMMANDS:
         try:
@@ -41,6 +44,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the ``mslab`` command line on ``argv`` (default ``sys.argv[1:]``); return the exit code."""
+    for line in take_broken():  # a method or effect file that failed to load: the rest works
+        print(f"mslab: warning: {line} (file skipped)", file=sys.stderr)
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):

@@ -6,7 +6,6 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from mslab.state import State
 from mslab.system import Counters
 
 
@@ -105,8 +104,3 @@ class Trajectory:
     stats: Stats
     complete: bool = True
     scene_name: str = ""
-
-    @property
-    def final_state(self) -> State:
-        """The last saved state."""
-        return State(self.x[-1], self.v[-1])

@@ -58,8 +58,8 @@ def test_the_python_namespace_path_without_bwrap(small_class):
     assert good.isolation == DESCRIPTION["namespaces"]
     assert good.total == good.max_points > 0, [(t.test, t.reason) for e in good.exercises for t in e.tests]
     assert bad.total == 0
-    reasons = {t.reason for e in bad.exercises for t in e.tests}
-    assert all("No module named 'mslab'" in r for r in reasons), reasons
+    reasons = {t.reason for e in bad.exercises for t in e.tests if t.test.startswith("test_public")}
+    assert reasons and all("No module named 'mslab'" in r for r in reasons), reasons
 
 
 @pytest.mark.skipif(not shutil.which("bwrap") or not _probe("bwrap"), reason="bubblewrap is not installed")
@@ -180,5 +180,5 @@ def test_syntax_error_names_its_line_once(tmp_path):
     sub.mkdir(parents=True)
     (sub / MODULE).write_text("import numpy as np\n\ndef stability_function(A, b, z:\n    pass\n")
     (result,) = grade([tmp_path / "student"], source=SOURCE, jobs=1, only=[TARGET])
-    reasons = {t.reason for e in result.exercises for t in e.tests}
+    reasons = {t.reason for e in result.exercises for t in e.tests if t.test.startswith("test_public")}
     assert reasons and all(r.count("line 3") == 1 and "SyntaxError" in r for r in reasons), reasons

@@ -30,23 +30,46 @@ def test_convergence_order_on_oscillator(method, gamma):
     assert fitted_order(scene, method, dts) == pytest.approx(order, abs=0.2)
 
 
-@pytest.mark.parametrize("method", ALL)
-def test_ledger_total_conserved_to_method_order_with_damping(method):
+#: the ledger's round-off on the damped oscillator below (E ~ 0.2, up to 320 steps) is ~1e-15:
+#: drifts below 1000 times that say nothing about the order
+LEDGER_FLOOR = 1e-12
+
+
+def ledger_slope(method) -> float:
+    """Local slope of the ledger drift between the two finest steps (n = 40 .. 320) above the floor.
+
+    The drift is ``C h^p (1 + D h + ...)``: a slope fitted over coarse steps is pulled down by
+    ``D h`` (rk4: 3.83 over n = 40..160, the 3/8 rule 3.70). The finest pair of steps whose
+    drift is still far above round-off sees ``p`` up to ``D h`` at ``h w0 = 0.0125``.
+    """
     scene = oscillator(stiffness=4.0, gamma=0.5, displacement=0.3, t_end=2.0)
-    order = mslab.get_method(method).order
-    dts = [2.0 / n for n in (80, 160, 320)] if order < 4 else [2.0 / n for n in (40, 80, 160)]
-    drift = []
-    for dt in dts:
-        tr = mslab.simulate(scene, method, dt=dt)
-        drift.append(np.abs(tr.energy.total - tr.energy.total[0]).max())
+    kept = []
+    for n in (40, 80, 160, 320):
+        tr = mslab.simulate(scene, method, dt=2.0 / n)
         assert tr.energy.dissipated[-1] > 0.01  # damping really took energy out
+        drift = float(np.abs(tr.energy.total - tr.energy.total[0]).max())
+        if drift < LEDGER_FLOOR:
+            break
+        kept.append(drift)
+    assert len(kept) >= 2, f"ledger drift below {LEDGER_FLOOR} already at n = 80: {kept}"
+    return float(np.log2(kept[-2] / kept[-1]))
+
+
+def check_ledger_order(method) -> None:
+    """Assert that the ledger of ``method`` (a name or a method object) closes to its declared order."""
     if method in ("implicit_midpoint", "gauss2"):
         # it conserves quadratic invariants exactly: on a linear oscillator the ledger
         # (quadratic energy + dissipated work booked at the midpoint) closes to round-off
-        assert max(drift) < 1e-13
+        scene = oscillator(stiffness=4.0, gamma=0.5, displacement=0.3, t_end=2.0)
+        tr = mslab.simulate(scene, method, dt=2.0 / 80)
+        assert np.abs(tr.energy.total - tr.energy.total[0]).max() < 1e-13
         return
-    slope = np.polyfit(np.log(dts), np.log(drift), 1)[0]
-    assert slope >= order - 0.2
+    assert ledger_slope(method) >= mslab.get_method(method).order - 0.2
+
+
+@pytest.mark.parametrize("method", ALL)
+def test_ledger_total_conserved_to_method_order_with_damping(method):
+    check_ledger_order(method)
 
 
 @pytest.mark.parametrize("method", ALL)

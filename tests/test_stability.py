@@ -345,3 +345,72 @@ def test_region_plot_through_a_pole():
     fig, ax = plt.subplots()
     plot_stability_regions(["implicit_euler"], ax=ax, re=(-3, 3), im=(-3, 3), n=241)  # grid holds z = 1
     plt.close(fig)
+
+
+# -- high-degree stability polynomials: the imaginary limit isolated exactly --------------------
+def _mp_imag_limit(A, b, dps: int = 60) -> float:
+    """First y > 0 where |R(iy)| exceeds 1, in mpmath at ``dps`` digits from the exact tableau.
+
+    ``R(z) = 1 + sum_k z^k b^T A^(k-1) 1`` (explicit), evaluated directly (no polynomial in
+    ``y^2``, no root isolation): a scan in steps of 1e-3 for the first sign change of
+    ``|R(iy)|^2 - 1``, then bisection to 1e-30.
+    """
+    import mpmath as mp
+
+    with mp.workdps(dps):
+        s = len(b)
+        Am = mp.matrix([[mp.mpf(int(a.p)) / int(a.q) for a in row] for row in A])
+        w = mp.matrix([1] * s)
+        coef = [mp.mpf(1)]
+        for _ in range(s):
+            coef.append(sum(mp.mpf(int(bi.p)) / int(bi.q) * w[i] for i, bi in enumerate(b)))
+            w = Am * w
+
+        def excess(y):
+            return abs(mp.polyval(coef[::-1], 1j * y)) ** 2 - 1
+
+        y, step = mp.mpf(0), mp.mpf("1e-3")
+        while excess(y + step) <= 0:
+            y += step
+        lo, hi = y, y + step
+        while hi - lo > mp.mpf("1e-30"):
+            mid = (lo + hi) / 2
+            lo, hi = (mid, hi) if excess(mid) <= 0 else (lo, mid)
+        return float(lo)
+
+
+@pytest.mark.parametrize("name", ["SSP104", "SSPRK3(9)", "SSPRK3(16)"])
+@pytest.mark.parametrize("given", ["exact", "float"])
+def test_imag_limit_of_high_degree_polynomials(name, given):
+    rk = pytest.importorskip("nodepy.runge_kutta_method")
+    method = {"SSP104": lambda: rk.loadRKM("SSP104"), "SSPRK3(9)": lambda: rk.SSPRK3(9),
+              "SSPRK3(16)": lambda: rk.SSPRK3(16)}[name]()
+    A, b = method.A.tolist(), method.b.tolist()
+    truth = _mp_imag_limit(A, b)
+    assert truth == pytest.approx({"SSP104": 4.921453, "SSPRK3(9)": 4.117648, "SSPRK3(16)": 5.984969}[name],
+                                  abs=1e-6)  # the values of the issue's independent check
+    if given == "float":
+        A, b = [[float(a) for a in row] for row in A], [float(w) for w in b]
+    ours = mslab.ExplicitRK(A, b, name="ssp", order=3)
+    limit = st.imag_limit(ours)
+    assert abs(limit - truth) < 1e-9
+    y = np.linspace(0.0, limit, 2001)
+    assert np.abs(st.amplification(ours, 1j * y)).max() <= 1 + 1e-12
+
+
+def test_damped_stiff_spring_gives_forward_euler_its_small_step():
+    """|1 + h lam| <= 1 on lam = -g/2 +- i sqrt(k/m - g^2/4) is h <= g m / k (far below the scan)."""
+    b = mslab.SceneBuilder(dim=1)
+    p = b.add_particle([0.0], mass=1.0, pinned=True)
+    q = b.add_particle([1.0], mass=1.0)
+    b.add_spring(p, q, stiffness=1e6)
+    b.add_damping(gamma=1.0)
+    scene = b.build()
+    gamma, k = 1.0, 1e6
+    assert mslab.stability.max_stable_dt(scene, "euler") == pytest.approx(gamma / k, rel=1e-9)
+    # undamped, forward Euler has no stable step at all
+    b2 = mslab.SceneBuilder(dim=1)
+    p = b2.add_particle([0.0], mass=1.0, pinned=True)
+    q = b2.add_particle([1.0], mass=1.0)
+    b2.add_spring(p, q, stiffness=1e6)
+    assert mslab.stability.max_stable_dt(b2.build(), "euler") == 0.0

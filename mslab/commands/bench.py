@@ -2,8 +2,9 @@
 
 Decision: the harnesses and their reference kernels live in the repository's ``benchmarks/``
 folder, not in the package; this command runs them from a checkout (it finds the folder
-next to the ``mslab`` package) and says so in one line when mslab is installed without it.
-Prints the targets of the compiled fast path (issue 5) and whether each one is met;
+next to the ``mslab`` package) and says in one line that it needs a checkout when mslab is
+installed without it (from a wheel). Prints the targets of the compiled fast path and whether
+each one is met;
 ``--quick`` (about half a minute) uses fewer steps and repeats and builds the 300 x 300
 cloth's springs directly instead of through the SceneBuilder. ``--out DIR`` also writes
 ``bench.json`` and ``bench.md`` (the table). Exit code 0 whether or not the targets are
@@ -37,17 +38,28 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _suite():
-    """``benchmarks.suite`` of the checkout this mslab runs from (CommandError without one)."""
+    """``benchmarks.suite`` of the checkout this mslab runs from (CommandError in one line without one).
+
+    The checkout is the folder holding both the running ``mslab`` package and
+    ``benchmarks/``. Its ``benchmarks`` package is loaded from its files; ``sys.path`` is
+    left as it is, so nothing else of the checkout can shadow an installed module.
+    """
     import importlib
-    import sys
+    import importlib.util
     from pathlib import Path
 
-    root = Path(__file__).resolve().parents[2]
-    if not (root / "benchmarks" / "suite.py").is_file():
-        raise CommandError(f"the benchmark harnesses are in a checkout's benchmarks/ folder, not found "
-                           f"next to this mslab ({root}); run it from a git clone", where="bench")
-    if str(root) not in sys.path:
-        sys.path.insert(0, str(root))
+    package = Path(__file__).resolve().parents[1]
+    root = package.parent
+    folder = root / "benchmarks"
+    if not (folder / "suite.py").is_file() or not (folder / "__init__.py").is_file():
+        raise CommandError(f"needs a checkout of the repository (its benchmarks/ folder); this mslab is "
+                           f"installed at {package} without it: run it from a git clone", where="bench")
+    if "benchmarks" not in sys.modules:
+        spec = importlib.util.spec_from_file_location("benchmarks", folder / "__init__.py",
+                                                      submodule_search_locations=[str(folder)])
+        module = importlib.util.module_from_spec(spec)
+        sys.modules["benchmarks"] = module
+        spec.loader.exec_module(module)
     return importlib.import_module("benchmarks.suite")
 
 

@@ -1,8 +1,9 @@
-"""What every subcommand shares: clear errors, JSON output, output folders, atomic writes."""
+"""What every subcommand shares: clear errors, JSON output, output folders, atomic writes, scenes, tables."""
 
 from __future__ import annotations
 
 import json
+import math
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -13,8 +14,11 @@ from mslab.files import atomic_write  # noqa: F401  (the commands import it from
 
 if TYPE_CHECKING:
     import argparse
+    from collections.abc import Sequence
 
     from matplotlib.figure import Figure
+
+    from mslab.scene import Scene
 
 
 class CommandError(Exception):
@@ -109,6 +113,14 @@ def method_help(what: str = "integrator") -> str:
     return f"{what}: {', '.join(methods())} (details: `mslab methods`)"
 
 
+def add_settings_options(p: argparse.ArgumentParser) -> None:
+    """Add ``--method --dt --t-end --save-every``, which override the scene file's [run] settings."""
+    p.add_argument("--method", default=None, metavar="METHOD", help=method_help())
+    p.add_argument("--dt", type=float, default=None, help="time step [s]")
+    p.add_argument("--t-end", dest="t_end", type=float, default=None, help="end time [s]")
+    p.add_argument("--save-every", dest="save_every", type=int, default=None, help="keep every n-th step")
+
+
 def save_figure(fig: Figure, path: str | Path) -> Path:
     """Save a matplotlib figure atomically (PNG, fixed dpi) and close it."""
     import matplotlib.pyplot as plt
@@ -116,3 +128,78 @@ def save_figure(fig: Figure, path: str | Path) -> Path:
     result = atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=110, format=Path(path).suffix[1:] or "png"))
     plt.close(fig)
     return result
+
+
+def write_json(path: str | Path, doc: dict) -> Path:
+    """Write ``doc`` as JSON to ``path`` atomically."""
+    text = json.dumps(to_jsonable(doc), indent=2) + "\n"
+
+    def write(tmp: str) -> None:
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(text)
+
+    return atomic_write(path, write)
+
+
+#: scenes generated in code when no scene file of that name exists
+GENERATED = ("chain", "oscillator")
+
+
+def resolve_scene(spec: str, **overrides) -> Scene:
+    """Return a scene by name or path through ``mslab.load_scene``; generator names as fallback.
+
+    ``oscillator`` (and ``chain`` while no scene file is installed) come from
+    :mod:`mslab.scenes.generators`. ``overrides`` (dt, t_end, ...) replace run settings.
+    """
+    from mslab.errors import SceneError
+    from mslab.scenes.loader import load_scene
+
+    given = {k: v for k, v in overrides.items() if v is not None}
+    try:
+        return load_scene(spec, **given)
+    except SceneError:
+        if spec not in GENERATED:
+            raise
+    if spec not in GENERATED:
+        raise CommandError(f"unknown scene '{spec}'; valid here: {', '.join(GENERATED)}", key="SCENE")
+    from mslab.scenes import generators
+
+    scene = getattr(generators, spec)()
+    return scene.with_settings(**given) if given else scene
+
+
+def course_methods() -> list[str]:
+    """Return the registered methods of the course, in the course's order."""
+    from mslab.integrators.base import COURSE_METHODS, methods
+
+    known = set(methods())
+    return [m for m in COURSE_METHODS if m in known]
+
+
+def method_list(names: Sequence[str] | None) -> list[str]:
+    """Return the registry names of the methods asked for (``-`` or ``_``); course methods by default."""
+    from mslab.integrators.base import get_method
+
+    if not names:
+        return course_methods()
+    return [get_method(n).name for n in names]
+
+
+def fmt(value: Any, spec: str = ".3g") -> str:
+    """Format a table cell: ``-`` for None, ``inf``/``nan`` spelled out, floats with ``spec``."""
+    if value is None:
+        return "-"
+    if isinstance(value, float) and not math.isfinite(value):
+        return "inf" if value > 0 else ("nan" if math.isnan(value) else "-inf")
+    return format(value, spec) if isinstance(value, float) else str(value)
+
+
+def table(rows: list[list[str]], header: list[str]) -> str:
+    """Plain fixed-width table; first column left-aligned, the others right-aligned."""
+    widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(len(header))]
+
+    def line(r: list):
+        return "  ".join(str(c).ljust(w) if i == 0 else str(c).rjust(w)
+                         for i, (c, w) in enumerate(zip(r, widths, strict=True)))
+
+    return "\n".join([line(header), "  ".join("-" * w for w in widths), *(line(r) for r in rows)])

@@ -16,14 +16,24 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from mslab.commands.common import CommandError, add_common_options, emit_json, out_dir, say
-from mslab.commands.precision import fmt, method_list, resolve_scene, table, write_json
+from mslab.commands.common import (
+    CommandError,
+    add_common_options,
+    emit_json,
+    fmt,
+    method_list,
+    out_dir,
+    resolve_scene,
+    say,
+    table,
+    write_json,
+)
 
 if TYPE_CHECKING:
     import argparse
     from pathlib import Path
 
-    from mslab.scenes.builder import Scene
+    from mslab.scene import Scene
 
 #: default run length, in units of the scene's t_end: a verdict needs many oscillations
 LONG_RUN = 10

@@ -38,7 +38,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="record each result as it arrives (default with --csv: FILE.journal)")
     p.add_argument("--resume", action="store_true",
                    help="continue an interrupted grading from its journal")
-    p.add_argument("--timeout", type=float, default=10.0, metavar="S", help="seconds per test (default 10)")
+    p.add_argument("--timeout", type=float, default=10.0, metavar="S",
+                   help="CPU seconds per test, all the sandbox's processes together (default 10; "
+                        "a wall-clock backstop of 5x+10 s)")
     p.add_argument("--memory", type=int, default=1024, metavar="MB", help="memory limit of student code")
     p.add_argument("--jobs", type=int, default=None, metavar="N", help="parallel runners (default: cores)")
     p.add_argument("--exercise", action="append", default=None, metavar="NAME",
@@ -46,7 +48,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--isolation", default="auto", choices=["auto", "bwrap", "namespaces", "rlimits"],
                    help="how student code is isolated (default: the strongest available)")
     p.add_argument("--require-isolation", action="store_true",
-                   help="refuse to grade where the machine offers no namespaces")
+                   help="refuse to grade where the machine offers no namespaces or no cgroup per sandbox")
     add_common_options(p, out=False)
     p.set_defaults(func=run)
 
@@ -103,6 +105,9 @@ def run(args: argparse.Namespace) -> int:
     if results and results[0].isolation == DESCRIPTION["rlimits"]:
         print("mslab: warning: grading is not isolated (no namespaces on this machine): student code "
               "ran as your user; use --require-isolation to refuse", file=sys.stderr)
+    elif results and results[0].resources.startswith("no cgroup"):
+        print(f"mslab: warning: {results[0].resources}: a sandbox's processes, memory and CPU share are "
+              "not capped as a whole; use --require-isolation to refuse", file=sys.stderr)
     if args.csv:
         write_csv(args.csv, gradebook_rows(results))
     if journal:

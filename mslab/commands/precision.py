@@ -13,86 +13,24 @@ other runs (other programs on the machine still count: for clean timings keep it
 
 from __future__ import annotations
 
-import json
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
-from mslab.commands.common import CommandError, add_common_options, atomic_write, emit_json, out_dir, say
+from mslab.commands.common import (
+    CommandError,
+    add_common_options,
+    emit_json,
+    fmt,
+    method_list,
+    out_dir,
+    resolve_scene,
+    say,
+    table,
+    write_json,
+)
 
 if TYPE_CHECKING:
     import argparse
-    from collections.abc import Sequence
-    from pathlib import Path
-
-    from mslab.scenes.builder import Scene
-
-#: scenes generated in code when no scene file of that name exists
-GENERATED = ("chain", "oscillator")
-
-
-def resolve_scene(spec: str, **overrides) -> Scene:
-    """Return a scene by name or path through ``mslab.load_scene``; generator names as fallback.
-
-    ``oscillator`` (and ``chain`` while no scene file is installed) come from
-    :mod:`mslab.scenes.generators`. ``overrides`` (dt, t_end, ...) replace run settings.
-    """
-    from mslab.errors import SceneError
-
-    given = {k: v for k, v in overrides.items() if v is not None}
-    load_scene = None
-    try:
-        from mslab.scenes.loader import load_scene
-    except ImportError:
-        pass
-    if load_scene is not None:
-        try:
-            return load_scene(spec, **given)
-        except SceneError:
-            if spec not in GENERATED:
-                raise
-    if spec not in GENERATED:
-        raise CommandError(f"unknown scene '{spec}'; valid here: {', '.join(GENERATED)}", key="SCENE")
-    from mslab.scenes import generators
-
-    scene = getattr(generators, spec)()
-    return scene.with_settings(**given) if given else scene
-
-
-def course_methods() -> list[str]:
-    """Return the registered methods of the course, in the course's order."""
-    from mslab.integrators.base import COURSE_METHODS, methods
-
-    known = set(methods())
-    return [m for m in COURSE_METHODS if m in known]
-
-
-def method_list(names: Sequence[str] | None) -> list[str]:
-    """Return the registry names of the methods asked for (``-`` or ``_``); course methods by default."""
-    from mslab.integrators.base import get_method
-
-    if not names:
-        return course_methods()
-    return [get_method(n).name for n in names]
-
-
-def fmt(value: Any, spec: str = ".3g") -> str:
-    """Format a table cell: ``-`` for None, ``inf``/``nan`` spelled out, floats with ``spec``."""
-    if value is None:
-        return "-"
-    if isinstance(value, float) and not math.isfinite(value):
-        return "inf" if value > 0 else ("nan" if math.isnan(value) else "-inf")
-    return format(value, spec) if isinstance(value, float) else str(value)
-
-
-def table(rows: list[list[str]], header: list[str]) -> str:
-    """Plain fixed-width table; first column left-aligned, the others right-aligned."""
-    widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(len(header))]
-
-    def line(r: list):
-        return "  ".join(str(c).ljust(w) if i == 0 else str(c).rjust(w)
-                         for i, (c, w) in enumerate(zip(r, widths, strict=True)))
-
-    return "\n".join([line(header), "  ".join("-" * w for w in widths), *(line(r) for r in rows)])
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -118,19 +56,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="processes for the error runs; timings stay serial (default 1)")
     add_common_options(p)
     p.set_defaults(func=run)
-
-
-def write_json(path: str | Path, doc: dict) -> Path:
-    """Write ``doc`` as JSON to ``path`` atomically."""
-    from mslab.commands.common import to_jsonable
-
-    text = json.dumps(to_jsonable(doc), indent=2) + "\n"
-
-    def write(tmp: str) -> None:
-        with open(tmp, "w", encoding="utf-8") as fh:
-            fh.write(text)
-
-    return atomic_write(path, write)
 
 
 def run(args: argparse.Namespace) -> int:

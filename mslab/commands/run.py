@@ -38,10 +38,10 @@ from mslab.commands.common import (
     CommandError,
     add_budget_option,
     add_common_options,
+    add_settings_options,
     atomic_write,
     emit_json,
     memory_budget,
-    method_help,
     out_path,
     say,
 )
@@ -81,14 +81,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_budget_option(p)
     add_common_options(p)
     p.set_defaults(func=run)
-
-
-def add_settings_options(p: argparse.ArgumentParser) -> None:
-    """Add ``--method --dt --t-end --save-every``, which override the scene file's [run] settings."""
-    p.add_argument("--method", default=None, metavar="METHOD", help=method_help())
-    p.add_argument("--dt", type=float, default=None, help="time step [s]")
-    p.add_argument("--t-end", dest="t_end", type=float, default=None, help="end time [s]")
-    p.add_argument("--save-every", dest="save_every", type=int, default=None, help="keep every n-th step")
 
 
 def drift_words(drift: float, method: str) -> str:
@@ -255,9 +247,8 @@ def run(args: argparse.Namespace) -> int:
     if problem:
         raise CommandError(problem, key="--animate")
     budget, budget_name = memory_budget(args)
-    scene = load_scene(
-        args.scene, method=args.method, dt=args.dt, t_end=args.t_end, save_every=args.save_every
-    )
+    scene = load_scene(args.scene, max_bytes=budget, method=args.method, dt=args.dt, t_end=args.t_end,
+                       save_every=args.save_every)
     method = scene.settings.method
     cost = run_cost(scene)
     problem = memory_problem(cost, budget, budget_name)

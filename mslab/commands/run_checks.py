@@ -70,6 +70,8 @@ def predicted_dt(scene: Scene, method: str) -> tuple[float | None, str | None]:
 def prediction_line(method: str, dt: float, predicted: float | None) -> str:
     """``predicted stable dt for rk4: 0.02828 s (dt = 0.01 is below it)`` and the like."""
     head = f"predicted stable dt for {method}:"
+    if predicted is None or math.isnan(predicted):
+        return f"{head} not available (the eigenvalue analysis failed); a blow-up still stops the run"
     if predicted == math.inf:
         return f"{head} no limit ({method} is A-stable; eigenvalue analysis skipped)"
     if predicted == 0:

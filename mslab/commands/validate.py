@@ -4,9 +4,10 @@ Prints one line per file: ``FILE: ok (...)`` with the run's cost (steps, saved s
 and their memory, and a time estimate from a few timed steps), or
 ``mslab: error: FILE: KEY: reason`` on stderr. A scene whose saved data would exceed the
 memory budget (``--max-memory``, default half the available memory) is an error here too,
-as ``mslab run`` would refuse it. ``--json`` prints one JSON document on stdout and nothing
-on stderr; ``--out DIR`` also writes it to ``DIR/validate.json``. Exit code 0 when every
-file is valid, 2 otherwise.
+as ``mslab run`` would refuse it; ``--method --dt --t-end --save-every`` override the file's
+``[run]`` values as in ``mslab run``, so the fix a refusal suggests can be checked.
+``--json`` prints one JSON document on stdout and nothing on stderr; ``--out DIR`` also
+writes it to ``DIR/validate.json``. Exit code 0 when every file is valid, 2 otherwise.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from typing import TYPE_CHECKING
 from mslab.commands.common import (
     add_budget_option,
     add_common_options,
+    add_settings_options,
     emit_json,
     memory_budget,
     out_path,
@@ -38,20 +40,26 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("files", nargs="+", metavar="FILE", help="scene .toml files or built-in scene names")
     p.add_argument("--no-timing", action="store_true", help="skip the few timed steps of the time estimate")
+    add_settings_options(p)
     add_budget_option(p)
     add_common_options(p)
     p.set_defaults(func=run)
 
 
-def check(name: str, budget: int | None, budget_name: str, timing: bool) -> dict:
-    """Return the validation record of one file: ``ok``, the cost, or ``key``/``reason``/``error``."""
+def check(name: str, budget: int | None, budget_name: str, timing: bool,
+          overrides: dict | None = None) -> dict:
+    """Return the validation record of one file: ``ok``, the cost, or ``key``/``reason``/``error``.
+
+    ``overrides``: ``method``, ``dt``, ``t_end``, ``save_every`` replacing the file's ``[run]``
+    values, as ``mslab run`` takes them (so a refusal's advice can be checked here).
+    """
     from mslab.budget import memory_problem, run_cost, time_per_step
     from mslab.errors import SceneError
     from mslab.progress import Progress
     from mslab.scenes.loader import load_scene
 
     try:
-        scene = load_scene(name)
+        scene = load_scene(name, max_bytes=budget, **(overrides or {}))
     except SceneError as err:
         return {"file": name, "ok": False, "key": err.key, "reason": err.reason,
                 "error": str(err).splitlines()[0]}
@@ -81,7 +89,7 @@ def line(record: dict) -> str:
         when = f"; about {duration(record['estimated_seconds'])} (from a few timed steps)"
     else:
         when = ""
-    from mslab.scenes.builder import plural
+    from mslab.scene import plural
 
     size = f"{plural(record['n_particles'], 'particle')}, {plural(record['n_springs'], 'spring')}"
     return (f"{record['file']}: ok ({size}, "
@@ -91,12 +99,13 @@ def line(record: dict) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``mslab validate`` with the parsed ``args``; return the exit code."""
-    from mslab.commands.precision import write_json
+    from mslab.commands.common import write_json
 
     budget, budget_name = memory_budget(args)
     results = []
     for name in args.files:
-        record = check(name, budget, budget_name, timing=not args.no_timing)
+        overrides = {"method": args.method, "dt": args.dt, "t_end": args.t_end, "save_every": args.save_every}
+        record = check(name, budget, budget_name, timing=not args.no_timing, overrides=overrides)
         results.append(record)
         if args.json:
             continue

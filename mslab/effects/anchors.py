@@ -16,15 +16,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mslab.effects.base import BuildContext, Effect, block_diagonal
+from mslab.effects.base import BuildContext, Builder, Effect, block_diagonal
 from mslab.effects.registry import register
 from mslab.effects.schema import Key
 
 if TYPE_CHECKING:
     import numpy.typing as npt
     import scipy.sparse as sp
-
-    from mslab.scenes.builder import SceneBuilder
 
 
 def anchor_kernel(x: np.ndarray, v: np.ndarray, f: np.ndarray, particles: np.ndarray, points: np.ndarray,
@@ -95,7 +93,7 @@ class Anchors(Effect):
         return (self.particles, self.points, self.stiffness)
 
     @staticmethod
-    def add_anchors(builder: SceneBuilder, particles: npt.ArrayLike, stiffness: npt.ArrayLike,
+    def add_anchors(builder: Builder, particles: npt.ArrayLike, stiffness: npt.ArrayLike,
                     points: npt.ArrayLike | None = None) -> None:
         """Pull ``particles`` towards ``points`` (default: where they are now) by springs of ``stiffness``.
 
@@ -104,7 +102,7 @@ class Anchors(Effect):
         builder.add_effect(Anchors, particles=particles, stiffness=stiffness, points=points)
 
     @classmethod
-    def add(cls, builder: SceneBuilder, values: dict, prefix: str = "") -> None:
+    def add(cls, builder: Builder, values: dict, prefix: str = "") -> None:
         """Record the anchors; absent ``points`` become the particles' current positions."""
         if values["points"] is None:  # the particles' positions when the anchors are added
             values = {**values, "points": builder.positions()[values["particles"]]}

@@ -22,13 +22,27 @@ An *effect* is one force term of Newton's second law (seed eq. 3), defined in on
 The flags ``velocity_dependent``, ``dissipative`` and ``driving`` let the :class:`~mslab.system.System`
 skip work that no effect of the scene asks for. ``docs/extending.md`` shows a complete
 example; :mod:`mslab.effects.registry` finds the modules.
+
+*Capabilities*: code outside ``mslab/effects/`` never picks an effect by name or class; it
+asks what an effect declares (None or False: "not this kind of force")
+
+* :meth:`Effect.hooke_springs` — Hooke springs ``(i, j, k, L)`` (the fast mass-spring
+  method's local step, the scene's spring table);
+* :meth:`Effect.linear_drag` — the ``gamma`` of ``f = -gamma v`` (the global matrix of the
+  fast mass-spring method, implicit Euler's objective for Newton's line search);
+* :meth:`Effect.constant_force` — the force when it is one fixed array (gravity);
+* :attr:`Effect.may_touch` and :meth:`Effect.contact_jacobian` — a contact force that
+  switches on where particles touch (the stability analysis of possible contacts).
+
+Effects import nothing above them: the builder they record into is the protocol
+:class:`Builder` (implemented by :class:`mslab.scenes.builder.SceneBuilder`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple, Protocol
 
 import numpy as np
 
@@ -36,6 +50,58 @@ from mslab.effects.schema import Key
 
 if TYPE_CHECKING:  # scipy.sparse is imported on first use: `import mslab` stays cheap
     import scipy.sparse as sp
+
+    from mslab.errors import SceneError
+
+
+class Builder(Protocol):
+    """What an effect's builder methods and ``from_toml`` use of a scene builder.
+
+    :class:`mslab.scenes.builder.SceneBuilder` implements it; effects import this protocol,
+    never the scenes package above them.
+    """
+
+    dim: int
+
+    @property
+    def n_particles(self) -> int: ...  # noqa: D102
+
+    def positions(self) -> np.ndarray: ...  # noqa: D102
+
+    def entries(self, effect: type[Effect]) -> list: ...  # noqa: D102
+
+    def add_effect(self, effect: type[Effect], **raw: Any) -> None: ...  # noqa: D102
+
+    def check_effect(self, effect: type[Effect], raw: dict, prefix: str,  # noqa: D102
+                     n: int | None = None) -> dict: ...
+
+    def check_table(self, value: Any, key: str) -> dict: ...  # noqa: D102
+
+    def error(self, key: str, reason: str) -> SceneError: ...  # noqa: D102
+
+
+class Body(Protocol):
+    """What a ``per_body`` section's ``from_toml`` knows of its body (:class:`mslab.scenes.bodies.Body`)."""
+
+    first: int
+    n: int
+    generator: str | None
+
+    def generated_pairs(self, kind: str) -> np.ndarray: ...  # noqa: D102
+
+
+class HookeSprings(NamedTuple):
+    """Hooke springs between particle pairs, as an effect declares them (:meth:`Effect.hooke_springs`).
+
+    For the pair ``(i[q], j[q])``, ``f_i = k (L - l) u = -f_j`` (seed eq. 2); shapes (n_springs,).
+    ``kind``: a label per spring (``structural``, ``shear``, ``bend`` ...).
+    """
+
+    i: np.ndarray
+    j: np.ndarray
+    stiffness: np.ndarray
+    rest_length: np.ndarray
+    kind: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -97,6 +163,9 @@ class Effect:
         One line for the scene-format table.
     kernel : callable or None
         The compiled kernel (a plain function, set with ``kernel = staticmethod(f)``).
+    may_touch : bool
+        A contact force: zero until a particle touches, then a penalty (capability, see
+        :meth:`contact_jacobian`).
     """
 
     name: ClassVar[str] = "effect"
@@ -112,6 +181,7 @@ class Effect:
     internal: ClassVar[bool] = False
     summary: ClassVar[str] = ""
     kernel: ClassVar[Callable[..., float] | None] = None
+    may_touch: ClassVar[bool] = False
 
     velocity_dependent: bool = False
     dissipative: bool = False
@@ -165,6 +235,31 @@ class Effect:
         """
         return self.jacobians(x, v)
 
+    # -- capabilities: what code outside effects/ may ask (module docstring) -----------------------
+    def hooke_springs(self) -> HookeSprings | None:
+        """Return ``(i, j, k, L)`` when the force at ``v = 0`` is exactly Hooke springs between pairs.
+
+        Any velocity-dependent remainder ``f(x, v) - f(x, 0)`` (damping along the springs)
+        is the effect's own. None (default): not Hooke springs.
+        """
+        return None
+
+    def linear_drag(self) -> float | None:
+        """Return ``gamma`` when the force is exactly ``f = -gamma v`` on every particle; else None."""
+        return None
+
+    def constant_force(self) -> np.ndarray | None:
+        """Return the force (n_particles, dim) when it depends on neither x nor v (gravity); else None."""
+        return None
+
+    def contact_jacobian(self, x: np.ndarray) -> sp.csr_matrix:
+        """``df/dx`` of a contact force (:attr:`may_touch`) as if every particle touched, at ``x``.
+
+        The stiffest linearisation the contact can have near ``x``: the stability analysis
+        of possible contacts uses it. Only for ``may_touch`` effects.
+        """
+        raise NotImplementedError(f"effect '{self.name}' is not a contact force")
+
     def kernel_params(self) -> tuple:
         """Trailing arguments of :attr:`kernel`: contiguous float64/int64 arrays and scalars."""
         raise NotImplementedError(f"effect '{self.name}' has no compiled kernel")
@@ -181,7 +276,7 @@ class Effect:
 
     # -- scene description -----------------------------------------------------------------------
     @classmethod
-    def add(cls, builder: Any, values: dict, prefix: str = "") -> None:
+    def add(cls, builder: Builder, values: dict, prefix: str = "") -> None:
         """Record checked ``values`` in the builder (default: one entry per call).
 
         ``builder.entries(cls)`` is the list :meth:`build` receives; a ``unique`` effect
@@ -194,7 +289,7 @@ class Effect:
         entries.append(values)
 
     @classmethod
-    def from_toml(cls, builder: Any, raw: dict, prefix: str, body: Any = None) -> None:
+    def from_toml(cls, builder: Builder, raw: dict, prefix: str, body: Body | None = None) -> None:
         """Add this effect from its raw TOML table (default: check it against :attr:`keys`, then :meth:`add`).
 
         ``prefix`` starts every error key (``colliders[0].``); ``body`` describes the body

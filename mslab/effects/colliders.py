@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mslab.effects.base import BuildContext, Effect, block_diagonal
+from mslab.effects.base import BuildContext, Builder, Effect, block_diagonal
 from mslab.effects.registry import register
 from mslab.effects.schema import Key
 from mslab.errors import SceneError
@@ -30,7 +30,6 @@ if TYPE_CHECKING:
     import numpy.typing as npt
     import scipy.sparse as sp
 
-    from mslab.scenes.builder import SceneBuilder
 
 def penalty_kernel(x: np.ndarray, v: np.ndarray, f: np.ndarray, sphere: int, point: np.ndarray, level: float,
                    stiffness: float, friction: float, slip_velocity: float) -> float:
@@ -104,6 +103,7 @@ class PenaltyCollider(Effect):
     many = True
     order = 40
     kernel = staticmethod(penalty_kernel)
+    may_touch = True
 
     def __init__(self, stiffness: float, friction: float = 0.0, slip_velocity: float = 1e-3):
         self.stiffness = float(stiffness)
@@ -136,6 +136,19 @@ class PenaltyCollider(Effect):
         """
         per = self.numpy_items_per_particle[1 if self.friction > 0.0 else 0]
         return int(500 + per * n_particles)
+
+    def contact_jacobian(self, x: np.ndarray) -> sp.csr_matrix:
+        """``df/dx = -k n n^T`` on every particle, as if all touched (capability: ``may_touch``).
+
+        ``n`` is the collider's normal at the particle (for a particle at a sphere's centre,
+        where it is undefined, the diagonal ``(1, ..., 1)/sqrt(dim)``); the curvature term
+        is left out (it vanishes at zero depth).
+        """
+        _, normal, _ = self._contact(x)
+        touching = np.linalg.norm(normal, axis=1, keepdims=True) > 0
+        normal = np.where(touching, normal, 1.0 / np.sqrt(x.shape[1]))
+        blocks = -self.stiffness * normal[:, :, None] * normal[:, None, :]
+        return block_diagonal(blocks, np.arange(x.shape[0]), x.shape[0])
 
     def _active(self, x: np.ndarray):
         depth, normal, dnormal = self._contact(x)
@@ -249,14 +262,14 @@ class Plane(PenaltyCollider):
         return 0, self.normal, self.offset
 
     @staticmethod
-    def add_plane(builder: SceneBuilder, normal: npt.ArrayLike, offset: float, stiffness: float,
+    def add_plane(builder: Builder, normal: npt.ArrayLike, offset: float, stiffness: float,
                   friction: float = 0.0, slip_velocity: float = 1e-3) -> None:
         """Add a penalty half-space ``normal . x >= offset`` (``slip_velocity``: friction regularisation)."""
         builder.add_effect(Plane, normal=normal, offset=offset, stiffness=stiffness, friction=friction,
                            slip_velocity=slip_velocity)
 
     @classmethod
-    def add(cls, builder: SceneBuilder, values: dict, prefix: str = "") -> None:
+    def add(cls, builder: Builder, values: dict, prefix: str = "") -> None:
         """Record the plane after checking that its normal is not zero."""
         if not np.any(values["normal"]):
             raise SceneError(f"{prefix}normal", "must not be the zero vector")
@@ -320,7 +333,7 @@ class Sphere(PenaltyCollider):
         return 1, self.center, self.radius
 
     @staticmethod
-    def add_sphere(builder: SceneBuilder, center: npt.ArrayLike, radius: float, stiffness: float,
+    def add_sphere(builder: Builder, center: npt.ArrayLike, radius: float, stiffness: float,
                    friction: float = 0.0, slip_velocity: float = 1e-3) -> None:
         """Add a penalty sphere (disc in 2D); ``slip_velocity``: friction regularisation."""
         builder.add_effect(Sphere, center=center, radius=radius, stiffness=stiffness, friction=friction,

@@ -6,14 +6,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mslab.effects.base import BuildContext, Effect
+from mslab.effects.base import BuildContext, Builder, Effect
 from mslab.effects.registry import register
 from mslab.effects.schema import Key
 
 if TYPE_CHECKING:
     import scipy.sparse as sp
-
-    from mslab.scenes.builder import SceneBuilder
 
 
 def damping_kernel(x: np.ndarray, v: np.ndarray, f: np.ndarray, gamma: float) -> float:
@@ -76,12 +74,16 @@ class Damping(Effect):
 
         return None, -self.gamma * sp.identity(self.n * self.dim, format="csr")
 
+    def linear_drag(self) -> float:
+        """Return ``gamma`` (capability: linear drag ``f = -gamma v``)."""
+        return self.gamma
+
     def kernel_params(self) -> tuple:
         """Return ``(gamma,)`` for :func:`damping_kernel`."""
         return (self.gamma,)
 
     @staticmethod
-    def add_damping(builder: SceneBuilder, gamma: float) -> None:
+    def add_damping(builder: Builder, gamma: float) -> None:
         """Add viscous drag ``f = -gamma v`` on every particle (``gamma = 0``: none)."""
         builder.add_effect(Damping, gamma=gamma)
 

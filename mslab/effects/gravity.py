@@ -11,15 +11,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mslab.effects.base import BuildContext, Effect
+from mslab.effects.base import BuildContext, Builder, Effect
 from mslab.effects.registry import register
 from mslab.effects.schema import Key
 
 if TYPE_CHECKING:
     import numpy.typing as npt
     import scipy.sparse as sp
-
-    from mslab.scenes.builder import SceneBuilder
 
 
 def down(dim: int) -> np.ndarray:
@@ -95,12 +93,16 @@ class Gravity(Effect):
         """Return ``(None, None)``: a constant force has zero Jacobians."""
         return None, None
 
+    def constant_force(self) -> np.ndarray:
+        """Return ``m_i g`` for every particle, shape (n_particles, dim) (capability: a constant force)."""
+        return self._f.copy()
+
     def kernel_params(self) -> tuple:
         """Return ``(m g,)``, shape (n_particles, dim), for :func:`gravity_kernel`."""
         return (self._f,)
 
     @staticmethod
-    def add_gravity(builder: SceneBuilder, g: npt.ArrayLike) -> None:
+    def add_gravity(builder: Builder, g: npt.ArrayLike) -> None:
         """Add uniform gravity: a vector (``[0, -9.81]``) or a number pulling down (-y in 2D, -z in 3D)."""
         builder.add_effect(Gravity, g=g)
 

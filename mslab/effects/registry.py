@@ -1,24 +1,30 @@
 """The effect registry: every module of the ``mslab.effects`` package is found on import.
 
 A module that defines an effect decorates its class with :func:`register`; the package
-imports each of its modules (:func:`discover`, also re-run when a name is not found, so a
-module added later is picked up), and the ``SceneBuilder``, the scene-file loader and
-validator, and the scene-format table of ``docs/scenes.md`` iterate :func:`effect_classes`.
+imports each of its modules (:func:`discover`: once per process, again when the package's
+``__path__`` changes or a name is not found, so a module added later is picked up), and the
+``SceneBuilder``, the scene-file loader and validator, and the scene-format table of
+``docs/scenes.md`` iterate :func:`effect_classes`.
 """
 
 from __future__ import annotations
 
 import importlib
+import os
 import pkgutil
+import sys
 from collections.abc import Callable
 
 from mslab.effects.base import Effect
+from mslab.errors import failure_line, note_broken, warn_broken
 
 #: infrastructure modules of the package that define no effect
 _INFRASTRUCTURE = {"base", "registry", "schema", "docs"}
 
 _registry: dict[str, type[Effect]] = {}
 _imported: set[str] = set()
+_listeners: list[Callable[[type[Effect]], None]] = []
+_scanned: list[str] | None = None  # the package's __path__ at the last scan of its folders
 
 
 def register(cls: type[Effect]) -> type[Effect]:
@@ -35,34 +41,69 @@ def register(cls: type[Effect]) -> type[Effect]:
             raise ValueError(f"{cls.__name__}: builder method '{method}' is already provided by "
                              f"{other[0].__name__}")
     _registry[cls.name] = cls
+    for listener in _listeners:
+        listener(cls)
     return cls
+
+
+def on_register(listener: Callable[[type[Effect]], None]) -> None:
+    """Call ``listener(cls)`` for every effect class registered so far and every one registered later.
+
+    How a layer above (the ``SceneBuilder``) learns of an effect without the effect importing it.
+    """
+    _listeners.append(listener)
+    for cls in list(_registry.values()):
+        listener(cls)
 
 
 def discover() -> None:
     """Import every module of the ``mslab.effects`` package not imported yet.
 
     Modules on any folder of the package's ``__path__`` count, so a test (or a course
-    installation) may add a folder to ``mslab.effects.__path__``.
+    installation) may add a folder to ``mslab.effects.__path__``. A module that fails to
+    import is skipped with one line ``FILE:LINE: reason`` (:func:`mslab.errors.broken_files`,
+    reported by the next lookup); the other effects keep working.
     """
+    global _scanned
     import mslab.effects as package
 
+    _scanned = list(package.__path__)
     for info in pkgutil.iter_modules(package.__path__):
         name = info.name
         if name in _INFRASTRUCTURE or name.startswith("_") or name in _imported:
             continue
         _imported.add(name)
-        importlib.import_module(f"mslab.effects.{name}")
+        before = set(_registry)
+        try:
+            importlib.import_module(f"mslab.effects.{name}")
+        except Exception as err:  # noqa: BLE001 - a broken effect file is skipped, the others work
+            sys.modules.pop(f"mslab.effects.{name}", None)
+            for added in set(_registry) - before:
+                del _registry[added]
+            path = os.path.join(getattr(info.module_finder, "path", ""), f"{name}.py")
+            note_broken(failure_line(err, path))
+
+
+def _discovered() -> None:
+    """:func:`discover` unless the package's folders were scanned already (the disk is read once)."""
+    import mslab.effects as package
+
+    if _scanned != list(package.__path__):
+        discover()
 
 
 def effect_classes() -> list[type[Effect]]:
     """Return the registered effect classes in System order (``order``, then registration order)."""
-    discover()
+    _discovered()
+    warn_broken()
     return sorted(_registry.values(), key=lambda cls: cls.order)
 
 
 def get_effect(name: str) -> type[Effect]:
-    """Return the registered effect class called ``name`` (KeyError when unknown)."""
-    discover()
+    """Return the registered effect class called ``name`` (KeyError when unknown, after a new scan)."""
+    _discovered()
+    if name not in _registry:
+        discover()
     return _registry[name]
 
 
@@ -78,7 +119,7 @@ def sections() -> dict[str, list[type[Effect]]]:
 def builder_method(name: str, rescan: bool = True) -> tuple[type[Effect], Callable] | None:
     """``(effect class, function)`` of the ``SceneBuilder`` method ``name``, or None."""
     if rescan:
-        discover()
+        _discovered()
     for cls in _registry.values():
         if name in cls.builder_methods:
             return cls, getattr(cls, name)

@@ -10,6 +10,7 @@ force of both (``k1 (l - L1) + k2 (l - L2) = (k1 + k2) (l - L)``).
 from __future__ import annotations
 
 import bisect
+import math
 
 import numpy as np
 
@@ -25,12 +26,13 @@ class SpringTable:
     def __init__(self) -> None:
         self.i: list[int] = []
         self.j: list[int] = []
-        self.k: list[float] = []
-        self.rest: list[float] = []
-        self.c: list[float] = []
+        self.stiffness: list[float] = []
+        self.rest_length: list[float] = []
+        self.damping: list[float] = []
         self.kind: list[str] = []
         self._index: dict[int, int] = {}  # (min, max) pair key -> spring index
         self._batches: list[tuple[int, str, bool, int]] = []  # (first spring, where, explicit, pairs offset)
+        self._open_batch = -1  # len(_batches) after add_one opened its batch (it adds to it since)
 
     def label(self, q: int) -> str:
         """Where spring ``q`` came from: ``springs.shear.pairs[3]``, or ``spring 7`` from the builder."""
@@ -85,7 +87,7 @@ class SpringTable:
             first = self.label(q)
             second = (f"[{pairs[s, 0] - offset}, {pairs[s, 1] - offset}]" if explicit
                       else self.label(start + s))
-            for column in (self.i, self.j, self.k, self.rest, self.c, self.kind):
+            for column in (self.i, self.j, self.stiffness, self.rest_length, self.damping, self.kind):
                 del column[start:]
             self._batches.pop()
             key = f"{where}pairs[{s}]" if explicit else where.rstrip(".")
@@ -99,14 +101,46 @@ class SpringTable:
                 self._append(pairs[s: s + 1], values, rest[s: s + 1], kind)
                 self._index[int(keys[s])] = q
             else:
-                k_old, k_new = self.k[q], values["stiffness"]
+                k_old, k_new = self.stiffness[q], values["stiffness"]
                 total = k_old + k_new
                 if total > 0:
-                    self.rest[q] = (k_old * self.rest[q] + k_new * rest[s]) / total
-                self.k[q] = total
-                self.c[q] += values["damping"]
+                    self.rest_length[q] = (k_old * self.rest_length[q] + k_new * rest[s]) / total
+                self.stiffness[q] = total
+                self.damping[q] += values["damping"]
             out[s] = q
         return out
+
+    def add_one(self, i: int, j: int, stiffness: float, rest_length: float | None, damping: float,
+                kind: str, xi: list[float], xj: list[float]) -> int | None:
+        """Add one checked builder spring in O(1); None when :meth:`add` must handle it.
+
+        That is a pair joined already (an error, or a merge) or a zero length with no
+        rest length (an error): :meth:`add` raises or merges as for any batch. ``xi``, ``xj``:
+        the positions of ``i`` and ``j`` (the rest length is computed as :meth:`add` does).
+        """
+        key = (i << 32) | j if i < j else (j << 32) | i
+        if key in self._index:
+            return None
+        if rest_length is None:  # the sum in numpy's order: sqrt((d0^2 + d1^2) + d2^2)
+            squares = 0.0
+            for a, b in zip(xi, xj, strict=True):
+                d = a - b
+                squares += d * d
+            rest_length = math.sqrt(squares)
+            if rest_length == 0.0:
+                return None
+        q = len(self.i)
+        if self._open_batch != len(self._batches):  # the last batch is not one of these: open one
+            self._batches.append((q, "springs.", False, 0))
+            self._open_batch = len(self._batches)
+        self._index[key] = q
+        self.i.append(i)
+        self.j.append(j)
+        self.stiffness.append(stiffness)
+        self.rest_length.append(rest_length)
+        self.damping.append(damping)
+        self.kind.append(kind)
+        return q
 
     def _first_duplicate(self, keys: np.ndarray, start: int) -> tuple[int, int] | None:
         """``(s, q)``: the first new pair ``s`` that spring ``q`` (earlier) already joins, or None."""
@@ -125,7 +159,7 @@ class SpringTable:
         m = pairs.shape[0]
         self.i.extend(pairs[:, 0].tolist())
         self.j.extend(pairs[:, 1].tolist())
-        self.k.extend([float(values["stiffness"])] * m)
-        self.c.extend([float(values["damping"])] * m)
-        self.rest.extend(rest.tolist())
+        self.stiffness.extend([float(values["stiffness"])] * m)
+        self.damping.extend([float(values["damping"])] * m)
+        self.rest_length.extend(rest.tolist())
         self.kind.extend([kind] * m)

@@ -7,11 +7,12 @@ recorded by :mod:`mslab.effects.spring_table` (duplicates, rest lengths, labels)
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mslab.effects.base import BuildContext, Effect
+from mslab.effects.base import Body, BuildContext, Builder, Effect, HookeSprings
 from mslab.effects.registry import register
 from mslab.effects.schema import Key, check_keys
 from mslab.effects.spring_kernels import scatter_pair_blocks, spring_jacobian_kernel, spring_kernel
@@ -23,9 +24,6 @@ if TYPE_CHECKING:  # scipy.sparse is imported on first use: `import mslab` stays
     import numpy.typing as npt
     import scipy.sparse as sp
 
-    from mslab.scenes.bodies import Body
-    from mslab.scenes.builder import SceneBuilder
-
 
 def scatter_pairs(f: np.ndarray, i: np.ndarray, j: np.ndarray, n: int) -> np.ndarray:
     """Sum pair forces ``+f`` onto particles ``i`` and ``-f`` onto ``j`` -> (n, dim)."""
@@ -33,6 +31,22 @@ def scatter_pairs(f: np.ndarray, i: np.ndarray, j: np.ndarray, n: int) -> np.nda
     for k in range(f.shape[1]):
         out[:, k] = np.bincount(i, f[:, k], minlength=n) - np.bincount(j, f[:, k], minlength=n)
     return out
+
+
+_INTEGERS = (int, np.integer)
+_NUMBERS = (int, float, np.integer, np.floating)
+_BOOLS = (bool, np.bool_)
+
+
+def _index(value: object, n: int) -> bool:
+    """``value`` is a particle index in ``0..n-1`` (as the schema's ``index`` accepts)."""
+    return isinstance(value, _INTEGERS) and not isinstance(value, _BOOLS) and 0 <= value < n
+
+
+def _non_negative(value: object) -> bool:
+    """``value`` is a finite number >= 0 (as the schema's ``number`` with ``low=0`` accepts)."""
+    return (isinstance(value, _NUMBERS) and not isinstance(value, _BOOLS) and math.isfinite(value)
+            and value >= 0.0)
 
 
 @register
@@ -220,13 +234,17 @@ class Springs(Effect):
         indptr = np.searchsorted(keys // size, np.arange(size + 1)).astype(np.int32)
         return slot, (keys % size).astype(np.int32), indptr
 
+    def hooke_springs(self) -> HookeSprings:
+        """Return ``(i, j, k, L, kind)`` (capability: Hooke springs; the damping is this effect's own)."""
+        return HookeSprings(self.i, self.j, self.stiffness, self.rest_length, self.kind)
+
     def kernel_params(self) -> tuple:
         """Return ``(i, j, stiffness, rest_length, damping, damped)`` for :func:`spring_kernel`."""
         return (self.i, self.j, self.stiffness, self.rest_length, self.damping, int(self.dissipative))
 
     # -- scene description -----------------------------------------------------------------------
     @staticmethod
-    def add_springs(builder: SceneBuilder, pairs: npt.ArrayLike, stiffness: float,
+    def add_springs(builder: Builder, pairs: npt.ArrayLike, stiffness: float,
                     rest_length: npt.ArrayLike | None = None, damping: float = 0.0,
                     kind: str = "structural", duplicates: str = "error") -> np.ndarray:
         """Add springs for every ``(i, j)`` in ``pairs`` with the same parameters; return their indices.
@@ -243,24 +261,36 @@ class Springs(Effect):
         return Springs._table(builder).add(values, builder.positions(), kind, "springs.", explicit=False)
 
     @staticmethod
-    def add_spring(builder: SceneBuilder, i: int, j: int, stiffness: float, rest_length: float | None = None,
+    def add_spring(builder: Builder, i: int, j: int, stiffness: float, rest_length: float | None = None,
                    damping: float = 0.0, kind: str = "structural", duplicates: str = "error") -> int:
         """Add a spring between particles i and j; ``rest_length=None`` takes the current length.
 
-        Returns the spring's index (see :meth:`add_springs` for ``duplicates``).
+        Returns the spring's index (see :meth:`add_springs` for ``duplicates``). O(1): plain
+        values are checked here and the spring appended; anything else (a mistake, a
+        duplicate) takes the path of :meth:`add_springs`, which names it.
         """
+        n = builder.n_particles
+        if (_index(i, n) and _index(j, n) and i != j and _non_negative(stiffness) and _non_negative(damping)
+                and (rest_length is None or _non_negative(rest_length)) and isinstance(kind, str)
+                and duplicates in ("error", "merge")):
+            x = builder.positions()
+            q = Springs._table(builder).add_one(int(i), int(j), float(stiffness),
+                                                None if rest_length is None else float(rest_length),
+                                                float(damping), kind, x[i].tolist(), x[j].tolist())
+            if q is not None:
+                return q
         added = Springs.add_springs(builder, [[i, j]], stiffness, rest_length, damping, kind, duplicates)
         return int(added[0])
 
     @staticmethod
-    def _table(builder: SceneBuilder) -> SpringTable:
+    def _table(builder: Builder) -> SpringTable:
         entries = builder.entries(Springs)
         if not entries:
             entries.append(SpringTable())
         return entries[0]
 
     @classmethod
-    def from_toml(cls, builder: SceneBuilder, raw: dict, prefix: str, body: Body | None = None) -> None:
+    def from_toml(cls, builder: Builder, raw: dict, prefix: str, body: Body | None = None) -> None:
         """Read the ``[springs.<kind>]`` tables of one body: pairs within the body, or from its generator."""
         table = builder.check_table(raw, prefix.rstrip("."))
         check_keys(table, cls.kinds, prefix, "spring kind")
@@ -287,7 +317,8 @@ class Springs(Effect):
         if not table.i:
             return []
         pairs = np.stack([np.array(table.i, dtype=np.int64), np.array(table.j, dtype=np.int64)], axis=1)
-        return [cls(pairs, np.array(table.k), np.array(table.rest), np.array(table.c), ctx.n_particles,
+        return [cls(pairs, np.array(table.stiffness), np.array(table.rest_length),
+                    np.array(table.damping), ctx.n_particles,
                     np.array(table.kind, dtype=str))]
 
     @classmethod

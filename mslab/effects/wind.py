@@ -24,15 +24,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mslab.effects.base import BuildContext, Effect
+from mslab.effects.base import BuildContext, Builder, Effect
 from mslab.effects.registry import register
 from mslab.effects.schema import Key
 
 if TYPE_CHECKING:
     import numpy.typing as npt
     import scipy.sparse as sp
-
-    from mslab.scenes.builder import SceneBuilder
 
 
 def wind_kernel(x: np.ndarray, v: np.ndarray, f: np.ndarray, drag: float, velocity: np.ndarray) -> float:
@@ -120,7 +118,7 @@ class Wind(Effect):
         return n_particles
 
     @staticmethod
-    def add_wind(builder: SceneBuilder, velocity: npt.ArrayLike, drag: float) -> None:
+    def add_wind(builder: Builder, velocity: npt.ArrayLike, drag: float) -> None:
         """Add drag ``f = -drag (v - velocity)`` in a constant wind on every particle (``drag = 0``: none)."""
         builder.add_effect(Wind, velocity=velocity, drag=drag)
 

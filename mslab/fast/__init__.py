@@ -91,9 +91,14 @@ def worth_compiling(system: System, integrator: Integrator, n_steps: int,
     measurement and never this process's history: the same run always takes the same
     backend, so its results (equal on both backends only to round-off) are reproducible.
     """
+    return numpy_seconds(system, integrator, n_steps) > LOAD_SECONDS
+
+
+def numpy_seconds(system: System, integrator: Integrator, n_steps: int) -> float:
+    """Predict the seconds of ``n_steps`` numpy steps: the fixed cost model of :func:`worth_compiling`."""
     per_eval = sum(NUMPY_SECONDS_PER_EFFECT + NUMPY_SECONDS_PER_ITEM * _items(e, system.n_particles)
                    for e in system.effects)
-    return n_steps * max(1, integrator.n_stages) * per_eval * 1.5 > LOAD_SECONDS
+    return n_steps * max(1, integrator.n_stages) * per_eval * 1.5
 
 
 def stepper(system: System, integrator: Integrator, backend: str | None = None, n_steps: int | None = None,
@@ -126,4 +131,4 @@ def stepper(system: System, integrator: Integrator, backend: str | None = None, 
 
 
 __all__ = ["BACKENDS", "COMPILE_SECONDS", "ForceModel", "LOAD_SECONDS", "Stepper", "check_backend", "stepper",
-           "unsupported", "worth_compiling"]
+           "numpy_seconds", "unsupported", "worth_compiling"]

@@ -23,14 +23,20 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from mslab.grading.box import describe
+from mslab.grading.box import setup as setup_cgroups
+from mslab.grading.box import teardown as teardown_cgroups
 from mslab.grading.dispatch import RUNNER_SLACK, STOP, clean_stale_folders, run_runner
 from mslab.grading.isolation import DESCRIPTION, detect
 from mslab.grading.layout import HIDDEN, Exercise, expand_submissions, find_exercises, read_student_file
-from mslab.grading.remote import set_not_dumpable
+from mslab.grading.remote import PHRASES, set_not_dumpable, wall_backstop
 from mslab.grading.report import Journal, fingerprint, format_report, gradebook_rows, item_key, printable
 
 if TYPE_CHECKING:
     from types import FrameType
+
+#: CPU seconds the sandbox may spend importing the student's module (numpy takes about 0.2 s)
+IMPORT_CPU = 30.0
 
 __all__ = ["ExerciseResult", "SubmissionResult", "TestResult", "format_report", "grade", "gradebook_rows"]
 
@@ -72,6 +78,7 @@ class SubmissionResult:
     student: str
     exercises: list[ExerciseResult] = field(default_factory=list)
     isolation: str = ""
+    resources: str = ""
 
     @property
     def total(self) -> float:
@@ -87,6 +94,7 @@ class SubmissionResult:
         """Return the result as plain data (for JSON)."""
         return {
             "student": self.student, "submission": self.submission, "isolation": self.isolation,
+            "resources": self.resources,
             "total": self.total, "max": self.max_points,
             "exercises": [{"name": e.name, "total": e.total, "max": e.max_points, "errors": e.errors,
                            "tests": [{"test": t.test, "points": t.points, "max": t.max_points,
@@ -113,20 +121,14 @@ def _interrupts():
 
 
 def _reason(test: str, entry: dict) -> str:
-    """Return the reason shown for a failed test; for a hidden test, its kind only (never its text)."""
-    text = str(entry.get("reason", "failed"))[:200]
+    """Return the reason shown for a failed test; for a hidden test, its kind's fixed phrase only.
+
+    The runner already sends a hidden test's phrase only; the grader rebuilds it from the
+    kind anyway, so no text of the runner's reaches a hidden test's line either.
+    """
     if not HIDDEN.match(test.split("::")[0]):
-        return text
-    kind = entry.get("kind")
-    if kind == "process":
-        return text  # the runner's own words about the student's process
-    if kind == "raised":
-        etype = str(entry.get("etype", ""))
-        etype = etype if etype.isidentifier() else "an exception"
-        return f"hidden test: your code raised {etype}"
-    if kind == "wrong":
-        return "hidden test: wrong result"
-    return "hidden test: failed"
+        return str(entry.get("reason", "failed"))[:300]
+    return f"hidden test: {PHRASES.get(str(entry.get('kind')), PHRASES['error'])}"
 
 
 def _score(exercise: Exercise, outcome: dict, errors: list[str], reason_all: str) -> ExerciseResult:
@@ -145,16 +147,16 @@ def _score(exercise: Exercise, outcome: dict, errors: list[str], reason_all: str
     return result
 
 
-def _run_items(items: list[dict], timeout: float, memory_mb: int, mode: str,
+def _run_items(items: list[dict], timeout: float, memory_mb: int, mode: str, cgroups: dict | None,
                on_item: Callable[[str, dict], None]) -> tuple[set, str]:
     """Run items in one runner: ``(keys finished, why some are missing)``."""
     job = {"nonce": secrets.token_hex(16), "timeout": timeout, "memory_mb": memory_mb, "isolation": mode,
-           "import_timeout": max(30.0, timeout), "items": items}
-    wall = sum(timeout * (it["n_tests"] + 1) + max(30.0, timeout) for it in items) + RUNNER_SLACK
-    return run_runner(job, wall, on_item)
+           "import_timeout": IMPORT_CPU, "cgroups": cgroups, "items": items}
+    wall = sum(wall_backstop(timeout) * (it["n_tests"] + 1) + wall_backstop(IMPORT_CPU) for it in items)
+    return run_runner(job, wall + RUNNER_SLACK, on_item)
 
 
-def _run_chunk(items: list[dict], timeout: float, memory_mb: int, mode: str,
+def _run_chunk(items: list[dict], timeout: float, memory_mb: int, mode: str, cgroups: dict | None,
                on_item: Callable[[str, dict | None, str], None]) -> None:
     """Run a chunk of items; ``on_item(key, outcome or None, why)`` for each.
 
@@ -164,7 +166,7 @@ def _run_chunk(items: list[dict], timeout: float, memory_mb: int, mode: str,
     """
     pending = list(items)
     while pending and not STOP.is_set():
-        done, why = _run_items(pending, timeout, memory_mb, mode, lambda k, o: on_item(k, o, ""))
+        done, why = _run_items(pending, timeout, memory_mb, mode, cgroups, lambda k, o: on_item(k, o, ""))
         rest = [it for it in pending if it["key"] not in done]
         if not rest or STOP.is_set():
             break
@@ -172,7 +174,8 @@ def _run_chunk(items: list[dict], timeout: float, memory_mb: int, mode: str,
         if len(pending) == 1:  # it already ran alone
             on_item(suspect["key"], None, why or "not graded")
             break
-        alone, why_alone = _run_items([suspect], timeout, memory_mb, mode, lambda k, o: on_item(k, o, ""))
+        alone, why_alone = _run_items([suspect], timeout, memory_mb, mode, cgroups,
+                                      lambda k, o: on_item(k, o, ""))
         if suspect["key"] not in alone:
             on_item(suspect["key"], None, why_alone or "not graded")
         pending = rest[1:]
@@ -193,13 +196,15 @@ def grade(paths: Iterable[str | Path], source: str | Path, jobs: int | None = No
     jobs : int
         Runners in parallel (default: number of cores).
     timeout : float
-        Seconds per test (the student's calls of one test together).
+        CPU seconds per test (the student's calls of one test together, every process of
+        the sandbox counted), with a wall-clock backstop (``remote.wall_backstop``).
     only : list of str, optional
         Grade only these exercise folders.
     isolation : {"auto", "bwrap", "namespaces", "rlimits"}
         How student code is isolated (:mod:`mslab.grading.isolation`); ``auto``: the strongest.
     require_isolation : bool
-        Refuse (ValueError) rather than grade with resource limits only.
+        Refuse (ValueError) rather than grade without namespaces or without a cgroup per
+        sandbox (:mod:`mslab.grading.box`).
     journal : path, optional
         Append each item's outcome here as it arrives; removed once the class is graded.
     resume : bool
@@ -212,6 +217,22 @@ def grade(paths: Iterable[str | Path], source: str | Path, jobs: int | None = No
     if require_isolation and mode == "rlimits":
         raise ValueError("isolation required, but this machine offers no namespaces (no bwrap, "
                          "no user namespaces): grading would run student code as your user")
+    jobs = max(1, jobs or os.cpu_count() or 1)
+    cgroups, why_not = setup_cgroups(jobs)
+    if require_isolation and cgroups is None:
+        raise ValueError(f"isolation required, but no cgroup can cap each sandbox's processes, memory "
+                         f"and CPU share here ({why_not})")
+    try:
+        return _grade(paths, source, jobs, timeout, memory_mb, only, mode, cgroups, why_not, journal,
+                      resume, progress)
+    finally:
+        teardown_cgroups(cgroups)
+
+
+def _grade(paths: Iterable[str | Path], source: str | Path, jobs: int, timeout: float, memory_mb: int,
+           only: list[str] | None, mode: str, cgroups: dict | None, why_not: str,
+           journal: str | Path | None, resume: bool,
+           progress: Callable[[int, int], None] | None) -> list[SubmissionResult]:
     exercises = find_exercises(source)
     if only:
         unknown = set(only) - {e.name for e in exercises}
@@ -219,7 +240,6 @@ def grade(paths: Iterable[str | Path], source: str | Path, jobs: int | None = No
             raise ValueError(f"unknown exercise(s): {', '.join(sorted(unknown))}")
         exercises = [e for e in exercises if e.name in only]
     submissions = expand_submissions(paths, exercises)
-    jobs = max(1, jobs or os.cpu_count() or 1)
     clean_stale_folders()
     book = Journal(journal, fingerprint(exercises, timeout, memory_mb), resume) if journal else None
     outcomes: dict[str, tuple] = {}
@@ -258,7 +278,8 @@ def grade(paths: Iterable[str | Path], source: str | Path, jobs: int | None = No
     STOP.clear()
     try:
         with _interrupts(), ThreadPoolExecutor(max_workers=jobs) as pool:
-            futures = [pool.submit(_run_chunk, chunk, timeout, memory_mb, mode, on_item) for chunk in chunks]
+            futures = [pool.submit(_run_chunk, chunk, timeout, memory_mb, mode, cgroups, on_item)
+                       for chunk in chunks]
             try:
                 for f in futures:
                     f.result()
@@ -269,8 +290,10 @@ def grade(paths: Iterable[str | Path], source: str | Path, jobs: int | None = No
         if book is not None:
             book.close(finished=False)
     results = []
+    boxed = describe(cgroups, memory_mb) + ("" if cgroups else f" ({why_not})")
     for k, (sub, _) in enumerate(submissions):
-        res = SubmissionResult(str(sub), printable(sub.name or str(sub)), isolation=DESCRIPTION[mode])
+        res = SubmissionResult(str(sub), printable(sub.name or str(sub)), isolation=DESCRIPTION[mode],
+                               resources=boxed)
         for ex in exercises:
             if (k, ex.name) in fixed:
                 why = fixed[(k, ex.name)]

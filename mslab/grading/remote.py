@@ -2,9 +2,11 @@
 
 :class:`Student` is what the instructor's tests see as the ``student`` fixture while
 grading: ``student.spring_forces(x, ...)`` sends the call to the sandbox and returns the
-decoded *data* it answered; errors of the student's code come back as
-:class:`StudentError`. A call that does not answer within the test's time limit kills
-the sandbox (its whole process group); the next test starts a fresh one.
+decoded *data* it answered; every failure comes back as :class:`StudentError` whose kind
+the runner decided from what it saw itself, never from the sandbox's words. A test's
+limit is CPU time of the whole sandbox (its cgroup, else its process tree in /proc), with
+a generous wall-clock backstop; hitting either kills the sandbox (its whole box and
+process group) and the next test starts a fresh one.
 """
 
 from __future__ import annotations
@@ -19,27 +21,55 @@ import time
 from pathlib import Path
 
 from mslab.grading import isolation
+from mslab.grading.box import MAX_PROCESSES, Box
 from mslab.grading.wire import WireError, dumps, loads
 
 PR_SET_PDEATHSIG, PR_SET_DUMPABLE, PR_CAPBSET_DROP, PR_SET_NO_NEW_PRIVS = 1, 4, 24, 38
-#: processes the student's uid may have at once (namespace modes as root)
-MAX_PROCESSES = 64
-#: the sandbox's own "type" for an answer it cannot send (no student class has this name)
-WIRE_FAILURE = "<wire>"
+#: the wall-clock backstop of a CPU-time limit L is WALL_FACTOR * L + WALL_SLACK seconds
+WALL_FACTOR, WALL_SLACK = 5.0, 10.0
+#: seconds between checks of the sandbox's CPU time (reading a cgroup / walking /proc)
+POLL_CGROUP, POLL_PROC = 0.05, 0.2
 #: largest single reply accepted from the sandbox (bytes)
 MAX_REPLY = 32 * 1024 * 1024
+#: characters of the student's own text (an exception's message) a public test may show
+STUDENT_TEXT = 200
+#: the runner's words for each kind of failure: all a hidden test ever shows (no sandbox text)
+PHRASES = {
+    "wrong": "wrong value",
+    "raised": "raised an exception",
+    "not_data": "answered something that is not plain data",
+    "missing": "missing function",
+    "import": "the module could not be imported",
+    "cpu": "timed out (CPU time limit)",
+    "wall": "timed out (wall-clock limit)",
+    "memory": "ran out of memory",
+    "died": "the process died",
+    "error": "failed",
+}
 
 
 class StudentError(Exception):
     """The student's code failed (raised, timed out, crashed, answered garbage).
 
-    ``mro`` lists the class names of the exception raised in the sandbox (empty when the
-    process itself failed), so tests can ask whether the student raised, say, RuntimeError.
+    ``kind`` (a key of :data:`PHRASES`) is the runner's own classification: from what it
+    saw itself (its clock, the sandbox's CPU time and exit status, its own decoding), or,
+    for ``raised``, ``not_data``, ``missing`` and ``import``, from the *fact* that the
+    sandbox answered so; the sandbox's words are never read for the kind. The message may
+    quote the student's text (public tests only show it). ``mro`` lists the class names
+    the sandbox claims for the exception (the student's claim, used only by
+    :func:`mslab.grading.checks.raised`).
     """
 
-    def __init__(self, message: str, mro: tuple[str, ...] = ()):
+    def __init__(self, message: str, kind: str = "error", mro: tuple[str, ...] = ()):
         super().__init__(message)
+        self.kind = kind if kind in PHRASES else "error"
         self.mro = tuple(mro)
+
+
+def student_text(value: object) -> str:
+    """Return the student's own text: one line, bounded to :data:`STUDENT_TEXT` characters."""
+    text = " ".join(str(value).split())
+    return text if len(text) <= STUDENT_TEXT else text[: STUDENT_TEXT - 3] + "..."
 
 
 def drop_privileges() -> None:
@@ -69,8 +99,10 @@ def set_not_dumpable() -> None:
         pass
 
 
-def _limits(memory_mb: int, cpu_s: int, file_mb: int, mode: str = "rlimits"):
+def _limits(memory_mb: int, cpu_s: int, file_mb: int, mode: str = "rlimits", box: Box | None = None):
     def apply():  # runs in the child between fork and exec
+        if box is not None:
+            box.enter()  # before anything of the student's runs: every process it starts stays in
         if mode == "rlimits":
             drop_privileges()
         else:  # bwrap / the jail need their privileges to build the namespaces; they drop them
@@ -99,27 +131,53 @@ def _plan() -> isolation.Plan:
     return _PLAN
 
 
+def wall_backstop(cpu_limit: float) -> float:
+    """Return the wall-clock limit behind a CPU-time limit: generous, so others' load never hits it."""
+    return WALL_FACTOR * cpu_limit + WALL_SLACK
+
+
+class Budget:
+    """A CPU-time limit on the whole sandbox, from now, with a wall-clock backstop."""
+
+    def __init__(self, box: Box, cpu_limit: float):
+        self.box, self.cpu_limit = box, float(cpu_limit)
+        self.cpu0 = box.cpu_seconds()
+        self.wall_end = time.monotonic() + wall_backstop(cpu_limit)
+        self.spent = 0.0
+
+    def exceeded(self) -> str | None:
+        """``"cpu"`` or ``"wall"`` once a limit is hit, else None (measured by the runner itself)."""
+        self.spent = self.box.cpu_seconds() - self.cpu0
+        if self.spent > self.cpu_limit:
+            return "cpu"
+        return "wall" if time.monotonic() >= self.wall_end else None
+
+
 class Sandbox:
     """One sandbox process running the student's module file ``module_file`` in ``workdir``.
 
     ``mode`` is the isolation (:mod:`mslab.grading.isolation`). In the namespace modes the
     student's file reaches the sandbox through an anonymous memory file and ``workdir`` is
-    not used: the sandbox sees its own ``/work`` only.
+    not used: the sandbox sees its own ``/work`` only. ``cgroups`` is the grading's parent
+    cgroup (:func:`mslab.grading.box.setup`) or None: each start gets a fresh :class:`Box`.
     """
 
     def __init__(self, module_file: Path, workdir: Path, memory_mb: int = 1024, cpu_s: int = 60,
-                 file_mb: int = 1, import_timeout: float = 30.0, mode: str = "rlimits"):
+                 file_mb: int = 1, import_timeout: float = 30.0, mode: str = "rlimits",
+                 cgroups: dict | None = None):
         self.module_file = Path(module_file)
         self.mode = mode
         self.import_timeout = float(import_timeout)
         self.workdir = Path(workdir)
+        self.cgroups = cgroups
         self._source_fd: int | None = None
         if mode != "rlimits":
             self._source_fd = os.memfd_create("student", os.MFD_CLOEXEC)
             os.write(self._source_fd, self.module_file.read_bytes())
         self.memory_mb, self.cpu_s, self.file_mb = memory_mb, cpu_s, file_mb
         self.proc: subprocess.Popen | None = None
-        self.broken: str | None = None  # import failed: every later call fails the same way
+        self.box: Box | None = None
+        self.broken: StudentError | None = None  # import failed: every later call fails the same way
         self._buf = b""
 
     def _env(self) -> dict:
@@ -141,101 +199,113 @@ class Sandbox:
         return argv, (self._source_fd,), None
 
     def ensure_started(self) -> None:
-        """Start the sandbox if it is not running (importing the module has its own time limit)."""
+        """Start the sandbox if it is not running (importing the module has its own limits)."""
         if self.broken:
-            raise StudentError(self.broken)
+            raise self.broken
         if self.proc is None or self.proc.poll() is not None:
-            self.start(time.monotonic() + self.import_timeout)
+            self.start()
 
-    def start(self, deadline: float) -> None:
-        """Start the sandbox process; it must have imported the student's file by ``deadline``."""
+    def start(self) -> None:
+        """Start the sandbox process in a fresh box; it must import the student's file within its limits."""
+        self.kill()
         argv, fds, cwd = self._command()
+        self.box = Box(self.cgroups, self.memory_mb)
         self.proc = subprocess.Popen(
             argv, cwd=cwd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
             env=self._env(), start_new_session=True, pass_fds=fds,
-            preexec_fn=_limits(self.memory_mb, self.cpu_s, self.file_mb, self.mode))
+            preexec_fn=_limits(self.memory_mb, self.cpu_s, self.file_mb, self.mode, self.box))
+        self.box.started(self.proc.pid)
         self._buf = b""
-        hello = self._read(deadline, starting=True)
-        if not hello.get("ready"):
-            self.broken = str(hello.get("error", "the module could not be imported"))
+        try:
+            hello = self._read(Budget(self.box, self.import_timeout), "while importing the module")
+        except StudentError as err:
+            self.broken = StudentError(f"the module could not be imported: {err}", err.kind)
+            raise self.broken from None
+        if not hello.get("ready"):  # the sandbox's words: the student's text
+            self.broken = StudentError(f"the module could not be imported: "
+                                       f"{student_text(hello.get('error', ''))}", "import")
             self.kill()
-            raise StudentError(self.broken)
+            raise self.broken
 
-    def _read(self, deadline: float, starting: bool = False) -> dict:
+    def _died(self, when: str) -> StudentError:
+        """Return the runner's own account of a process that stopped: exit status, CPU and memory events."""
+        try:
+            code = self.proc.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            code = None
+        oom = self.box.oom_kills() if self.box else 0
+        self.kill()
+        if oom:
+            return StudentError(f"ran out of memory {when} (the sandbox's memory limit)", "memory")
+        if code in (-signal.SIGXCPU, 128 + signal.SIGXCPU):
+            return StudentError(f"timed out {when} (CPU time limit of a process)", "cpu")
+        return StudentError(f"the process {_exit_reason(code)} {when}", "died")
+
+    def _read(self, budget: Budget, when: str) -> dict:
         sel = selectors.DefaultSelector()
         fd = self.proc.stdout.fileno()
         sel.register(fd, selectors.EVENT_READ)
+        poll = POLL_CGROUP if self.cgroups else POLL_PROC
         try:
             while b"\n" not in self._buf:
-                left = deadline - time.monotonic()
-                if left <= 0:
+                hit = budget.exceeded()
+                if hit:
                     self.kill()
-                    if starting:
-                        raise StudentError(f"time limit exceeded: importing the module took over "
-                                           f"{self.import_timeout:g} s")
-                    raise StudentError("time limit exceeded: the call did not finish in time")
-                if not sel.select(timeout=left):
+                    limit = (f"{budget.cpu_limit:g} s of CPU time" if hit == "cpu"
+                             else f"{wall_backstop(budget.cpu_limit):g} s of wall-clock time")
+                    raise StudentError(f"timed out {when} ({limit})", hit)
+                if not sel.select(timeout=poll):
                     continue
                 chunk = os.read(fd, 1 << 20)
                 if not chunk:
-                    code = self.proc.wait(timeout=5)
-                    self.kill()
-                    when = "while importing the module" if starting else "during the call"
-                    reason = _exit_reason(code)
-                    if starting:
-                        self.broken = f"the process {reason} {when}"
-                    raise StudentError(f"the process {reason} {when}")
+                    raise self._died(when)
                 self._buf += chunk
                 if len(self._buf) > MAX_REPLY:
                     self.kill()
-                    raise StudentError(f"the answer is larger than {MAX_REPLY // 2**20} MB")
+                    raise StudentError(f"answered more than {MAX_REPLY // 2**20} MB", "not_data")
         finally:
             sel.close()
         line, self._buf = self._buf.split(b"\n", 1)
         try:
             msg = loads(line)
-        except WireError as err:
+        except WireError:
             self.kill()
-            raise StudentError(f"the process answered something that is not data ({err})") from None
+            raise StudentError("the process answered something that is not data", "not_data") from None
         if not isinstance(msg, dict):
             self.kill()
-            raise StudentError("the process answered something that is not a reply")
+            raise StudentError("the process answered something that is not a reply", "not_data")
         return msg
 
-    def request(self, msg: dict, deadline: float, limit: float | None = None) -> dict:
-        """Send one message and return the reply (StudentError when none comes by ``deadline``)."""
+    def request(self, msg: dict, budget: Budget) -> dict:
+        """Send one message and return the reply (StudentError when a limit of ``budget`` is hit)."""
         self.ensure_started()
         try:
             self.proc.stdin.write(dumps(msg))
             self.proc.stdin.flush()
         except (BrokenPipeError, OSError):
-            self.kill()
-            raise StudentError("the process stopped before the call") from None
-        try:
-            return self._read(deadline)
-        except StudentError as err:
-            if limit is not None and str(err).startswith("time limit exceeded: the call"):
-                raise StudentError(f"time limit exceeded ({limit:g} s per test)") from None
-            raise
+            raise self._died("before the call") from None
+        return self._read(budget, "during the call")
 
     def kill(self) -> None:
-        """Kill the sandbox process and its whole session."""
-        if self.proc is None:
-            return
-        try:
-            os.killpg(self.proc.pid, signal.SIGKILL)
-        except (ProcessLookupError, PermissionError):
-            pass
-        for stream in (self.proc.stdin, self.proc.stdout):
+        """Kill the sandbox process, its whole session and everything in its box."""
+        if self.proc is not None:
             try:
-                stream.close()
-            except OSError:
+                os.killpg(self.proc.pid, signal.SIGKILL)
+            except (ProcessLookupError, PermissionError):
                 pass
-        try:
-            self.proc.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            pass
-        self.proc = None
+            for stream in (self.proc.stdin, self.proc.stdout):
+                try:
+                    stream.close()
+                except OSError:
+                    pass
+            try:
+                self.proc.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                pass
+            self.proc = None
+        if self.box is not None:
+            self.box.close()
+            self.box = None
 
     def close(self) -> None:
         """Kill the process and forget the student's file."""
@@ -247,13 +317,13 @@ class Sandbox:
 
 def _exit_reason(code: int | None) -> str:
     if code is None:
-        return "stopped"
+        return "did not stop"
     if code < 0:
         try:
             name = signal.Signals(-code).name
         except ValueError:
             name = f"signal {-code}"
-        hint = {"SIGXCPU": " (CPU time limit)", "SIGKILL": " (killed)", "SIGXFSZ": " (file size limit)",
+        hint = {"SIGKILL": " (killed)", "SIGXFSZ": " (file size limit)",
                 "SIGSEGV": " (crashed, maybe out of memory)"}.get(name, "")
         return f"was stopped by {name}{hint}"
     if 128 < code < 160:  # bwrap reports a signal as 128 + number
@@ -264,51 +334,52 @@ def _exit_reason(code: int | None) -> str:
 class Student:
     """The student's module as the instructor's tests see it while grading.
 
-    The test's time limit ``timeout`` covers all its calls together; it starts once the
-    sandbox is up (importing the module has a limit of its own).
+    The test's limit ``timeout`` is CPU time of the whole sandbox for all its calls
+    together, with a wall-clock backstop (:func:`wall_backstop`); it starts once the
+    sandbox is up (importing the module has limits of its own). Every failure is a
+    :class:`StudentError` of a kind the runner decided; the student's own text appears in
+    the message only as a quote (:func:`student_text`).
     """
 
     def __init__(self, sandbox: Sandbox, timeout: float):
         object.__setattr__(self, "_sandbox", sandbox)
         object.__setattr__(self, "_timeout", float(timeout))
-        object.__setattr__(self, "_end", None)
+        object.__setattr__(self, "_budget", None)
 
-    @property
-    def _deadline(self) -> float:
-        if self._end is None:
-            self._sandbox.ensure_started()
-            object.__setattr__(self, "_end", time.monotonic() + self._timeout)
-        return self._end
+    def _request(self, msg: dict) -> dict:
+        budget = self._budget
+        if budget is None or budget.box is not self._sandbox.box or self._sandbox.proc is None:
+            self._sandbox.ensure_started()  # a fresh sandbox (after a kill) gets what is left of the limit
+            left = self._timeout if budget is None else max(0.0, budget.cpu_limit - budget.spent)
+            budget = Budget(self._sandbox.box, left)
+            object.__setattr__(self, "_budget", budget)
+        return self._sandbox.request(msg, budget)
 
     def __getattr__(self, name: str):
         if name.startswith("__"):
             raise AttributeError(name)
-        reply = self._sandbox.request({"op": "getattr", "name": name}, self._deadline, self._timeout)
+        reply = self._request({"op": "getattr", "name": name})
         if not reply.get("ok"):
-            if reply.get("type") == "AttributeError":  # the grader's words, not the student's error
-                raise StudentError(_missing(name, reply))
-            raise StudentError(_missing(name, reply), _mro(reply))
+            if reply.get("type") == "AttributeError":
+                raise StudentError(f"missing function '{name}'", "missing")
+            raise _student_failure(name, reply)
         if not reply.get("callable"):
             return reply.get("value")
 
         def call(*args, **kwargs):
-            r = self._sandbox.request({"op": "call", "name": name, "args": list(args), "kwargs": kwargs},
-                                      self._deadline, self._timeout)
+            r = self._request({"op": "call", "name": name, "args": list(args), "kwargs": kwargs})
             if not r.get("ok"):
-                raise StudentError(f"{name}(): {r.get('error', 'failed')}", _mro(r))
+                raise _student_failure(f"{name}()", r)
             return r.get("value")
 
         call.__name__ = name
         return call
 
 
-def _mro(reply: dict) -> tuple[str, ...]:
-    """Return the student's exception classes; none when the sandbox itself reports (data it cannot send)."""
-    mro = tuple(str(c) for c in reply.get("mro", ()) if isinstance(c, str))
-    return () if mro[:1] == (WIRE_FAILURE,) else mro
-
-
-def _missing(name: str, reply: dict) -> str:
-    if reply.get("type") == "AttributeError":
-        return f"missing function '{name}'"
-    return f"{name}: {reply.get('error', 'failed')}"
+def _student_failure(what: str, reply: dict) -> StudentError:
+    """Return a failure the sandbox reported: kind from the reply's shape, words quoted as the student's."""
+    text = student_text(reply.get("error", ""))
+    mro = tuple(str(c)[:100] for c in reply.get("mro", ()) if isinstance(c, str))[:64]
+    if reply.get("unencodable") is True:
+        return StudentError(f"{what}: answered something that is not plain data: {text}", "not_data")
+    return StudentError(f"{what}: {text}", "raised", mro)

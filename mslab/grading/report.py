@@ -40,6 +40,8 @@ def format_report(result: SubmissionResult) -> str:
     lines = [f"{printable(result.student)}  ({printable(result.submission, 200)})"]
     if result.isolation:
         lines.append(f"  isolation: {result.isolation}")
+    if result.resources:
+        lines.append(f"  resources: {result.resources}")
     for ex in result.exercises:
         lines.append(f"  {ex.name}: {ex.total:g}/{ex.max_points:g}")
         for t in ex.tests:

@@ -30,23 +30,21 @@ from pathlib import Path
 
 import pytest
 
-from mslab.grading.remote import Sandbox, Student, StudentError, set_not_dumpable
+from mslab.grading.layout import HIDDEN
+from mslab.grading.remote import PHRASES, Sandbox, Student, StudentError, set_not_dumpable
 
 
-def short_reason(excinfo: pytest.ExceptionInfo) -> tuple[str, str, str]:
-    """Return one line for the grade report, the kind of failure, and the student's exception type.
+def short_reason(excinfo: pytest.ExceptionInfo, hidden: bool) -> tuple[str, str]:
+    """Return the line for the grade report and the kind of failure (a key of ``PHRASES``).
 
-    Kinds: ``raised`` (the student's code raised ``etype``), ``process`` (the student's
-    process timed out, crashed, could not be imported or answered no data: the line is the
-    runner's own), ``wrong`` (an assertion of the test failed), ``error`` (the test itself
-    failed otherwise). The grader shows only the kind for hidden tests.
+    Kinds: those of :class:`StudentError` (decided by the runner, see
+    :mod:`mslab.grading.remote`), ``wrong`` (an assertion of the test failed), ``error``
+    (the test itself failed otherwise). A hidden test's line is the kind's fixed phrase:
+    neither the test's own values nor anything the sandbox said.
     """
     err = excinfo.value
-    etype = ""
     if isinstance(err, StudentError):
-        text = str(err)
-        kind = "raised" if err.mro else "process"
-        etype = err.mro[0] if err.mro else ""
+        text, kind = str(err), err.kind
     elif isinstance(err, AssertionError):
         text = str(err).strip().splitlines()[0] if str(err).strip() else "assertion failed"
         kind = "wrong"
@@ -54,7 +52,7 @@ def short_reason(excinfo: pytest.ExceptionInfo) -> tuple[str, str, str]:
         first = str(err).splitlines()[0] if str(err) else ""
         text = f"{type(err).__name__}: {first}" if first else type(err).__name__
         kind = "error"
-    return text[:200], kind, etype[:60]
+    return (PHRASES[kind] if hidden else text[:300]), kind
 
 
 class GradingPlugin:
@@ -72,7 +70,7 @@ class GradingPlugin:
     def student(self) -> Student:
         """Fixture: the student's module, each call forwarded to the sandbox."""
         if self.missing:
-            raise StudentError(self.missing)
+            raise StudentError(self.missing, "missing")
         return Student(self.sandbox, self.timeout)
 
     def pytest_collectreport(self, report: pytest.CollectReport) -> None:
@@ -99,7 +97,8 @@ class GradingPlugin:
         if rep.failed:
             entry["passed"] = False
             if call.excinfo:
-                entry["reason"], entry["kind"], entry["etype"] = short_reason(call.excinfo)
+                hidden = bool(HIDDEN.match(Path(item.fspath).name))
+                entry["reason"], entry["kind"] = short_reason(call.excinfo, hidden)
             else:
                 entry["reason"], entry["kind"] = "failed", "error"
         elif rep.skipped:
@@ -133,7 +132,7 @@ def run_exercise(job: dict, ex: dict) -> dict:
             sandbox = Sandbox(module_file, work_dir, memory_mb=int(job.get("memory_mb", 1024)),
                               cpu_s=int(ex.get("cpu_s", 120)),
                               import_timeout=float(job.get("import_timeout", 30.0)),
-                              mode=job.get("isolation", "rlimits"))
+                              mode=job.get("isolation", "rlimits"), cgroups=job.get("cgroups"))
         plugin = GradingPlugin(sandbox, float(job.get("timeout", 10.0)), missing)
 
         def unchanged() -> bool:

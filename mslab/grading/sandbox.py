@@ -11,7 +11,10 @@ resource limits set by the runner. It
    (see :mod:`wire`): a value, or the exception's type and message.
 
 Nothing it says decides a grade by itself: the runner checks every value in its own
-process with the instructor's tests.
+process with the instructor's tests. Everything it says is the student's (student code
+runs in this process and may write anything on the channel): the runner takes from a
+reply only its shape (a value, an exception, data it could not encode) and quotes its
+words in public tests only.
 """
 
 from __future__ import annotations
@@ -61,8 +64,7 @@ def main() -> None:
         try:
             line = dumps(msg)
         except WireError as err:
-            line = dumps({"ok": False, "type": "WireError", "mro": ["<wire>"],
-                          "error": f"the function returned data the grader cannot read: {err}"})
+            line = dumps({"ok": False, "unencodable": True, "error": str(err)})
         chan_out.write(line)
         chan_out.flush()
 

@@ -20,10 +20,13 @@ stepping, a family answers for its methods what the analysis needs:
 from __future__ import annotations
 
 import difflib
+import sys
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from mslab.errors import broken_files, warn_broken
 from mslab.state import State
 
 if TYPE_CHECKING:
@@ -103,20 +106,111 @@ class Integrator:
 
 
 _REGISTRY: dict[str, Integrator] = {}
+#: name -> (file that registered it, registered from ``__main__``: a script or notebook)
+_ORIGIN: dict[str, tuple[str, bool]] = {}
+
+#: The package's own method modules. Their declared orders are held equal to the derived
+#: ones by the tests (``tests/test_derive.py``) instead of at every import, which would load
+#: sympy on ``import mslab``; every other registration derives its order when it is made.
+BUILT_IN_MODULES = ("explicit_tableaux", "implicit_tableaux", "splittings", "verlet_leapfrog",
+                    "fast_mass_spring")
 
 
 def register(method: Integrator) -> Integrator:
-    """Add a method to the registry under ``method.name`` (replacing one of that name)."""
+    """Add a method to the registry under ``method.name``, after checking what it is given.
+
+    Checks, each refused with a ``ValueError`` of one line:
+
+    * the name: letters, digits and ``_``, not taken by another file (a clash names both
+      files; the same file, or a script or notebook registering again, replaces its own);
+    * the coefficients: a Runge-Kutta tableau's ``c`` equals the row sums of ``A`` and its
+      weights ``b`` sum to 1; a splitting's drifts and kicks each sum to 1 (consistency);
+    * the order: derived from the coefficients with :func:`mslab.derive.order` (rooted
+      trees, exact for exact coefficients) for a tableau or splitting registered from
+      anywhere but the package's built-in modules; a declared order that differs is
+      refused with both numbers, and ``order=0`` (not declared) takes the derived one.
+    """
     if not method.name or not method.name.replace("_", "").isalnum():
         raise ValueError(f"a registered method needs a name of letters, digits and '_', got {method.name!r}")
     if method.family not in FAMILIES:
         raise ValueError(f"method {method.name!r}: unknown family {method.family!r}")
+    frame = sys._getframe(1)
+    origin = (frame.f_code.co_filename, frame.f_globals.get("__name__") == "__main__")
+    _check_name(method.name, origin)
+    _check_consistent(method)
+    path = Path(origin[0])
+    if not (path.stem in BUILT_IN_MODULES and path.resolve().parent == Path(__file__).resolve().parent):
+        _check_order(method)
     _REGISTRY[method.name] = method
+    _ORIGIN[method.name] = origin
     return method
+
+
+def _check_name(name: str, origin: tuple[str, bool]) -> None:
+    if name not in _REGISTRY:
+        return
+    before = _ORIGIN.get(name, ("<unknown>", False))
+    if before[0] == origin[0] or (before[1] and origin[1]):
+        return
+    raise ValueError(f"method name {name!r} is already registered by {before[0]}: choose another name "
+                     f"(built-in and other files' methods are never replaced)")
+
+
+def _close_to(value: float, target: float, scale: float) -> bool:
+    return abs(value - target) <= 1e-12 * max(1.0, scale)
+
+
+def _check_consistent(method: Integrator) -> None:
+    """Refuse ``c`` that is not the row sums of ``A``, and weights that do not sum to 1."""
+    given = method.coefficients
+    name = method.name
+    if "A" in given:
+        A, b, c = (np.asarray(method.A), np.asarray(method.b), np.asarray(method.c))
+        rows = A.sum(axis=1)
+        for i in range(rows.size):
+            if not _close_to(c[i], rows[i], float(np.abs(A[i]).sum())):
+                raise ValueError(f"method {name!r}: c[{i}] = {c[i]:.17g} is not the row sum of A, "
+                                 f"{rows[i]:.17g} (c_i = sum_j A_ij; leave c out to use the row sums)")
+        pairs = (("b", b),)
+    elif "drift" in given:
+        pairs = (("drift", np.asarray(method.drift)), ("kick", np.asarray(method.kick)))
+    else:
+        return
+    for key, w in pairs:
+        if not _close_to(float(w.sum()), 1.0, float(np.abs(w).sum())):
+            raise ValueError(f"method {name!r}: the weights {key} sum to {float(w.sum()):.17g}, not 1 "
+                             f"(inconsistent: not even order 1)")
+
+
+def _check_order(method: Integrator) -> None:
+    """Derive the order of a tableau or splitting; refuse a declared order that differs."""
+    if not ({"A", "drift"} & set(method.coefficients)):
+        return  # the adapters and a user's own Integrator subclass: no coefficients to read
+    from mslab.derive import order  # analysis of what enters the registry; loads sympy
+
+    declared = int(method.order)
+    try:
+        derived = order(method, max_order=declared if declared > 0 else 8)
+    except ValueError as err:
+        if "order >" not in str(err):
+            raise ValueError(f"method {method.name!r}: {err}") from None
+        derived = None
+    if declared == 0 and derived is not None:
+        method.order = derived
+        return
+    if derived == declared:
+        return
+    found = f"more than {declared}" if derived is None else str(derived)
+    hint = ""
+    if method.family == "splitting" and derived is not None and derived < declared:
+        hint = " (a splitting steps drift first: to begin with a kick, begin drift with a 0)"
+    raise ValueError(f"method {method.name!r} declares order {declared}, but its coefficients have order "
+                     f"{found} (mslab.derive.order){hint}")
 
 
 def methods() -> list[str]:
     """Registry names: the course's methods first, in teaching order, then the others."""
+    warn_broken()
     course = [m for m in COURSE_METHODS if m in _REGISTRY]
     return course + sorted(m for m in _REGISTRY if m not in COURSE_METHODS)
 
@@ -128,9 +222,13 @@ def get_method(name: str | Integrator) -> Integrator:
     """
     if isinstance(name, Integrator):
         return name
+    warn_broken()
     key = str(name).strip().lower().replace("-", "_")
     if key in _REGISTRY:
         return _REGISTRY[key]
-    close = difflib.get_close_matches(key, list(_REGISTRY), n=1)
-    hint = f" (did you mean '{close[0]}'?)" if close else ""
-    raise ValueError(f"unknown method '{name}'{hint}; valid methods: {', '.join(methods())}")
+    close = difflib.get_close_matches(key, list(_REGISTRY), n=4, cutoff=0.6)
+    hint = f" (did you mean '{close[0]}'?)" if len(close) == 1 else \
+        f" (close: {', '.join(sorted(close))})" if close else ""
+    broken = [line for line in broken_files() if f"/{key}.py:" in line]
+    skipped = f"; its file was skipped: {broken[0]}" if broken else ""
+    raise ValueError(f"unknown method '{name}'{hint}{skipped}; valid methods: {', '.join(methods())}")

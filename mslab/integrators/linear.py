@@ -29,12 +29,13 @@ across it; hard compression makes ``A`` indefinite). The symmetric-mode factors 
 only when they solve ``A`` to 1e-8 (no pivoting can lose accuracy on an indefinite matrix);
 otherwise SuperLU with partial pivoting (COLAMD ordering), a plain LU. Clamping the
 compressed springs' stiffness would make every matrix definite, but was measured to break
-Newton's convergence at dt = 1/30 (issue 12): mslab keeps the exact Jacobian.
+Newton's convergence on the cloth at dt = 1/30: mslab keeps the exact Jacobian.
 
 **Reuse** (:class:`StageSolver`): a factorisation is kept between Newton iterations and
 steps. Each iteration takes (1) a *modified Newton* step with the kept factors (no
 Jacobian, one solve) when the contraction measured on the last such step predicts that the
-remaining modified steps cost less than a fresh factorisation (both timed as they run),
+remaining modified steps cost less than a fresh factorisation (both counted in solves, with
+the fixed ratio :data:`FACTOR_OVER_SOLVE`: never a timing, so a run is reproducible),
 else (2) an inexact Newton step by conjugate gradients on the current ``A`` preconditioned
 with the kept factors (the middle ground: one Jacobian, a few solves), else (3) a fresh
 factorisation when CG is slow, meets negative curvature, or no definite factors are kept.
@@ -102,7 +103,7 @@ class Factor:
         start = time.perf_counter()
         self.pattern = pattern  # A's kept pattern (A is then pattern.matrix(data)), or None
         self._build(A, counters, definite_only)
-        self.seconds = time.perf_counter() - start  # wall time of the factorisation
+        self.seconds = time.perf_counter() - start  # wall time of the factorisation (lesson 04 shows it)
 
     def _build(self, A: sp.spmatrix | np.ndarray, counters: Counters, definite_only: bool) -> None:
         import scipy.linalg as sla
@@ -177,7 +178,7 @@ class Factor:
         x = self._splu.solve(b)
         return bool(np.all(np.isfinite(x)) and np.linalg.norm(self.A @ x - b) <= 1e-8 * np.linalg.norm(b))
 
-    solve_seconds: float = 0.0  # wall time of the last solve
+    solve_seconds: float = 0.0  # wall time of the last solve (lesson 04 shows it; no decision reads it)
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         """``A^-1 b`` (timed)."""

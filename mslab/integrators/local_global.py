@@ -62,17 +62,22 @@ class GlobalStep:
         import scipy.sparse as sp  # on first use: `import mslab` stays cheap
 
         self.dt = dt
-        springs = [e for e in system.effects if e.name == "springs"]
-        self.i = np.concatenate([e.i for e in springs]) if springs else np.zeros(0, np.int64)
-        self.j = np.concatenate([e.j for e in springs]) if springs else np.zeros(0, np.int64)
-        self.k = np.concatenate([e.stiffness for e in springs]) if springs else np.zeros(0)
-        self.rest = np.concatenate([e.rest_length for e in springs]) if springs else np.zeros(0)
-        self.gamma = sum(e.gamma for e in system.effects if e.name == "damping")
+        # by the effects' declared capabilities: Hooke springs (i, j, k, L) and linear drag gamma
+        springs = [e for e in system.effects if e.hooke_springs() is not None]
+        tables = [e.hooke_springs() for e in springs]
+        self.i = np.concatenate([t.i for t in tables]) if tables else np.zeros(0, np.int64)
+        self.j = np.concatenate([t.j for t in tables]) if tables else np.zeros(0, np.int64)
+        self.stiffness = np.concatenate([t.stiffness for t in tables]) if tables else np.zeros(0)
+        self.rest_length = np.concatenate([t.rest_length for t in tables]) if tables else np.zeros(0)
+        drags = [e for e in system.effects if e.linear_drag() is not None]
+        self.gamma = sum(e.linear_drag() for e in drags)
         #: effects evaluated at the iterate: everything but Hooke springs and linear drag
-        self.others = [e for e in system.effects if e.name not in ("springs", "damping")]
-        self.damped_springs = [e for e in springs if e.dissipative]
+        self.others = [e for e in system.effects if e not in springs and e not in drags]
+        #: springs with a velocity-dependent remainder (damping along the springs)
+        self.damped_springs = [e for e in springs if e.velocity_dependent]
         n = system.n_particles
-        lap = sp.coo_matrix((np.concatenate([self.k, self.k, -self.k, -self.k]),
+        k = self.stiffness
+        lap = sp.coo_matrix((np.concatenate([k, k, -k, -k]),
                              (np.concatenate([self.i, self.j, self.i, self.j]),
                               np.concatenate([self.i, self.j, self.j, self.i]))), shape=(n, n)).tocsr()
         self.free = ~system.pinned
@@ -158,6 +163,8 @@ class LocalGlobal(Integrator):
     # -- stepping ---------------------------------------------------------------------------------
     def step(self, system: System, state: State, dt: float) -> State:
         """One step: ``iterations`` local/global sweeps from the inertial guess ``y``."""
+        if system.pinned.all():  # nothing free: no global matrix to factor, every particle stays put
+            return State(state.x + dt * state.v, state.v.copy(), (), state.dissipated)
         g = global_step(system, dt)
         c = system.counters
         xn, vn = state.x, state.v
@@ -175,7 +182,7 @@ class LocalGlobal(Integrator):
             done += 1
             c.n_force += 1
             jd[:] = 0.0
-            projections(x, g.i, g.j, g.k, g.rest, jd)
+            projections(x, g.i, g.j, g.stiffness, g.rest_length, jd)
             if g.others or g.damped_springs:
                 v = (x - xn) / dt
                 for e in g.others:

@@ -6,17 +6,21 @@ current Newton matrix, preconditioned by factors of an earlier one (see that mod
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
 if TYPE_CHECKING:
     import scipy.sparse as sp
 
-    from mslab.integrators.linear import Factor
+
+class Preconditioner(Protocol):
+    """Anything that solves with a kept factorisation (:class:`mslab.integrators.linear.Factor`)."""
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray: ...  # noqa: D102
 
 
-def pcg(A: sp.spmatrix, b: np.ndarray, precond: Factor, rtol: float,
+def pcg(A: sp.spmatrix, b: np.ndarray, precond: Preconditioner, rtol: float,
         max_iter: int) -> tuple[np.ndarray | None, int]:
     """Conjugate gradients on ``A x = b`` preconditioned by ``precond.solve``.
 

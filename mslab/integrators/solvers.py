@@ -27,7 +27,7 @@ gradient iteration), ``n_iter`` (every iteration).
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
@@ -36,9 +36,22 @@ from mslab.errors import StepFailure
 if TYPE_CHECKING:
     import scipy.sparse as sp
 
-    from mslab.integrators.runge_kutta import ImplicitRK
     from mslab.state import State
     from mslab.system import System
+
+
+class ImplicitRK(Protocol):
+    """What the stage solvers read of an implicit Runge-Kutta method.
+
+    :class:`mslab.integrators.runge_kutta.ImplicitRK` implements it (and calls this module),
+    so this module does not import it back. Optional attributes read with ``getattr``:
+    ``linear_solver`` (default ``"auto"``), ``linearised`` (default False).
+    """
+
+    A: np.ndarray
+    diagonally_implicit: bool
+    max_iter: int
+    rtol: float
 
 #: systems up to this many unknowns solve Newton's linear system densely (LAPACK beats
 #: building scipy.sparse objects there); larger ones use a sparse direct solve
@@ -298,7 +311,7 @@ def variational(system: System) -> bool:
     constant and symmetric).
     """
     for e in system.effects:
-        if e.name == "damping":
+        if e.linear_drag() is not None:
             continue
         if e.velocity_dependent or e.dissipative or not e.conservative:
             return False
@@ -317,7 +330,7 @@ def objective(system: System, xh: np.ndarray, vh: np.ndarray, c: float, V: np.nd
     """
     dv = V - vh
     kin = 0.5 * float(np.sum(system.mass[~system.pinned, None] * dv[~system.pinned] ** 2))
-    drag = sum(0.5 * c * e.power(xh, V) for e in system.effects if e.name == "damping")
+    drag = sum(0.5 * c * e.power(xh, V) for e in system.effects if e.linear_drag() is not None)
     return kin + system.potential_energy(xh + c * V) + drag
 
 

@@ -95,7 +95,7 @@ class Convergence:
 def convergence(scene: Scene, methods: Sequence[str | Integrator],
                 dts: Sequence[float] | Mapping[str, Sequence[float]], t_end: float | None = None, *,
                 floor: float = ROUNDOFF_FLOOR, ceiling: float | None = None, n_save: int = 100,
-                jobs: int = 1, progress: bool | None = False) -> Convergence:
+                jobs: int = 1, progress: bool | None = False, backend: str | None = None) -> Convergence:
     """Global error at ``t_end`` against ``dt`` and the fitted order of each method.
 
     Parameters
@@ -111,6 +111,8 @@ def convergence(scene: Scene, methods: Sequence[str | Integrator],
     ceiling : float, optional
         Errors above it are left out of the fit (default :func:`error_ceiling`, a tenth of
         the solution's size).
+    backend : {"auto", "numba", "numpy"}, optional
+        Decided once for all the runs (:func:`work_precision`).
 
     Returns
     -------
@@ -118,7 +120,7 @@ def convergence(scene: Scene, methods: Sequence[str | Integrator],
     """
     t_end = float(scene.settings.t_end if t_end is None else t_end)
     records = work_precision(scene, methods, dts, t_end, timing=False, n_save=n_save, jobs=jobs,
-                             progress=progress)
+                             progress=progress, backend=backend)
     ceiling = error_ceiling(scene, t_end) if ceiling is None else ceiling
     orders = fitted_orders(records, floor, ceiling)
     expected = {m: get_method(m).order for m in orders}

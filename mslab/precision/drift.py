@@ -11,6 +11,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from mslab.errors import ConvergenceError, InstabilityError, StabilityWarning
+from mslab.fast.job import job_backends
+from mslab.integrators.base import get_method
 from mslab.precision.runs import _method_names, _progress_bar, _save_every
 from mslab.scenes.builder import Scene
 from mslab.simulate import step_count
@@ -142,7 +144,7 @@ def drift_verdict(t: np.ndarray, error: np.ndarray, *, trend_limit: float = DRIF
 def energy_drift(scene: Scene, methods: Sequence[str | Integrator], dt: float | None = None,
                  t_end: float | None = None, *, n_save: int = 2000,
                  trend_limit: float = DRIFT_TREND, growth_limit: float = DRIFT_GROWTH,
-                 warm_up: bool = True, progress: bool | None = False) -> dict:
+                 warm_up: bool = True, progress: bool | None = False, backend: str | None = None) -> dict:
     """Relative energy error over time, drift rate and verdict of each method.
 
     Parameters
@@ -164,6 +166,9 @@ def energy_drift(scene: Scene, methods: Sequence[str | Integrator], dt: float | 
     progress : bool, None or object with ``update(n)``
         Progress by the clock over all the methods' steps, naming the current method
         (:mod:`mslab.progress`); None: on a terminal, False: none, an object: the caller's.
+    backend : {"auto", "numba", "numpy"}, optional
+        None: ``$MSLAB_BACKEND`` or ``"auto"``, decided once for all the methods' runs
+        (:func:`mslab.fast.job.job_backends`).
 
     Returns
     -------
@@ -178,6 +183,8 @@ def energy_drift(scene: Scene, methods: Sequence[str | Integrator], dt: float | 
     t_end = float(scene.settings.t_end if t_end is None else t_end)
     steps = step_count(t_end, dt)
     names = _method_names(methods)
+    backends = dict(zip(names, job_backends(scene.system, [(get_method(m), steps) for m in names], backend),
+                        strict=True))
     bar, owned = _progress_bar(len(names) * steps, progress, f"energy drift {scene.name}", unit="step")
     out = {}
     try:
@@ -191,11 +198,11 @@ def energy_drift(scene: Scene, methods: Sequence[str | Integrator], dt: float | 
                     warnings.simplefilter("ignore", StabilityWarning)
                     if warm_up and steps > 20:  # compiled kernels, caches: out of the wall time
                         try:
-                            simulate(scene, m, dt, 10 * dt, progress=False)
+                            simulate(scene, m, dt, 10 * dt, progress=False, backend=backends[m])
                         except InstabilityError:
                             pass
                     traj = simulate(scene, m, dt, t_end, save_every=_save_every(steps, n_save),
-                                    progress=bar if bar is not None else False)
+                                    progress=bar if bar is not None else False, backend=backends[m])
             except ConvergenceError as err:  # not an energy behaviour: the iteration failed
                 traj, failure, kind = err.trajectory, str(err), "no convergence"
             except InstabilityError as err:

@@ -31,7 +31,8 @@ def _save_every(steps: int, n_save: int) -> int:
     return max(1, steps // max(1, n_save))
 
 
-def _mslab_run(scene: Scene, method: str, dt: float, t_end: float, n_save: int) -> dict:
+def _mslab_run(scene: Scene, method: str, dt: float, t_end: float, n_save: int,
+               backend: str | None = None) -> dict:
     """One error run of an mslab method: saved samples and counted work (picklable result)."""
     from mslab.simulate import simulate
 
@@ -39,7 +40,8 @@ def _mslab_run(scene: Scene, method: str, dt: float, t_end: float, n_save: int) 
     try:
         with warnings.catch_warnings():  # a predicted instability shows in the record itself
             warnings.simplefilter("ignore", StabilityWarning)
-            traj = simulate(scene, method, dt, t_end, save_every=_save_every(steps, n_save), progress=False)
+            traj = simulate(scene, method, dt, t_end, save_every=_save_every(steps, n_save), progress=False,
+                            backend=backend)
     except InstabilityError as err:  # ConvergenceError too
         stats = err.trajectory.stats.as_dict() if err.trajectory is not None else {}
         return {"ok": False, "failure": str(err), "stats": stats}
@@ -146,10 +148,10 @@ def _picklable(scene: Scene) -> Scene:
 
 
 def _call(task: tuple):
-    kind, scene, name, value, t_end, n_save, atol = task
+    kind, scene, name, value, t_end, n_save, extra = task  # extra: mslab's backend, scipy's atol
     if kind == "mslab":
-        return _mslab_run(scene, name, value, t_end, n_save)
-    return _scipy_run(scene, name, value, t_end, atol)
+        return _mslab_run(scene, name, value, t_end, n_save, extra)
+    return _scipy_run(scene, name, value, t_end, extra)
 
 
 def _progress_bar(total: int, progress: Any, desc: str, unit: str = "run"):

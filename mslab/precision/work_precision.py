@@ -5,6 +5,8 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
+from mslab.fast.job import job_backends
+from mslab.integrators.base import get_method
 from mslab.precision.reference import reference_solution
 from mslab.precision.runs import (
     _describe,
@@ -60,9 +62,10 @@ def work_precision(scene: Scene, methods: Sequence[str | Integrator],
     jobs : int
         Processes for the error runs (timing runs stay serial; see the module notes).
     backend : {"auto", "numba", "numpy"}, optional
-        Backend of the timed runs (:func:`mslab.simulate`; None: ``$MSLAB_BACKEND`` or
-        ``"auto"``, which keeps short runs in numpy). The error runs take the default: both
-        backends give the same results to round-off and the same counts.
+        Backend of the runs (None: ``$MSLAB_BACKEND`` or ``"auto"``). ``"auto"`` is decided
+        once for the whole sweep (:func:`mslab.fast.job.job_backends`): when all its runs
+        together repay loading the compiled code, every run that the compiled loop can step
+        takes it. Error runs and timed runs of a (method, dt) take the same backend.
     progress : bool, None or object with ``update(n)``
         Progress by the clock (:mod:`mslab.progress`) naming the current run; None: on a
         terminal once the sweep has taken about 2 s, False: none, an object: the caller's.
@@ -74,7 +77,8 @@ def work_precision(scene: Scene, methods: Sequence[str | Integrator],
         as ``"scipy:RK45"``), ``dt`` (scipy: mean step ``t_end / steps``), ``rtol`` (scipy
         only), ``error``, ``error_rms``, ``n_force``, ``n_jac``, ``n_solve`` (scipy: LU
         factorisations), ``n_iter``, ``steps``, ``wall_time`` [s], ``ok``, ``failure``,
-        ``reference`` ("exact" or "DOP853").
+        ``reference`` ("exact" or "DOP853"); mslab's records also ``backend`` ("numba" or
+        "numpy": the code that stepped the run).
     """
     t_end = float(scene.settings.t_end if t_end is None else t_end)
     names = _method_names(methods)
@@ -84,7 +88,11 @@ def work_precision(scene: Scene, methods: Sequence[str | Integrator],
             step_count(t_end, dt)  # refuse a dt that does not divide t_end before doing any work
     ref = reference_solution(scene, t_end)
     light = _picklable(scene)
-    tasks = [("mslab", light, m, dt, t_end, n_save, None) for m in names for dt in steps[m]]
+    runs = [(m, dt) for m in names for dt in steps[m]]
+    backends = job_backends(scene.system,
+                            [(get_method(m), step_count(t_end, dt) * (1 + (repeats if timing else 0)))
+                             for m, dt in runs], backend)
+    tasks = [("mslab", light, m, dt, t_end, n_save, b) for (m, dt), b in zip(runs, backends, strict=True)]
     tasks += [("scipy", light, s, float(r), t_end, n_save, atol) for s in scipy_methods for r in rtols]
     n_timed = len(tasks) if timing else 0
     bar, owned = _progress_bar(len(tasks) + n_timed, progress, f"precision {scene.name}")
@@ -94,7 +102,7 @@ def work_precision(scene: Scene, methods: Sequence[str | Integrator],
         for task, run in zip(tasks, runs, strict=True):
             kind, _, name, value, *_ = task
             if kind == "mslab":
-                records.append(_record("mslab", name, value, None, run, ref))
+                records.append({**_record("mslab", name, value, None, run, ref), "backend": task[-1]})
             else:
                 records.append(_record("scipy", f"scipy:{name}", run["stats"]["dt"], value, run, ref))
         if timing:
@@ -107,7 +115,7 @@ def work_precision(scene: Scene, methods: Sequence[str | Integrator],
                     warm.add((kind, name))
                     if kind == "mslab":
                         rec["wall_time"] = _time_mslab(scene, name, value, t_end, repeats, budget, warm_up,
-                                                       backend)
+                                                       task[-1])
                     else:
                         rec["wall_time"] = _time_scipy(scene, name, value, t_end, atol, repeats, budget,
                                                        warm_up)

@@ -1,6 +1,7 @@
 """Scenes: the programmatic builder, generators, and TOML scene files (``load_scene``)."""
 
-from mslab.scenes.builder import Scene, SceneBuilder, Settings
+from mslab.scene import Scene, Settings
+from mslab.scenes.builder import SceneBuilder
 from mslab.scenes.generators import chain, cloth, grid_springs, lattice, oscillator, oscillator_solution
 from mslab.scenes.loader import load_scene, scene_names, scene_path
 

@@ -2,24 +2,26 @@
 
 Only the effects added to the builder exist in the built :class:`~mslab.system.System`:
 a scene without colliders never creates (or evaluates) collider code. The effect methods
-(``add_spring``, ``add_gravity``, ``add_plane`` ...) are provided by the effect modules and
-found through the effect registry (:mod:`mslab.effects.registry`); the TOML loader adds
-effects through the same methods.
+(``add_spring``, ``add_gravity``, ``add_plane`` ...) are defined once, by the effect classes,
+and are attributes of ``SceneBuilder`` (listed in its class body; those of an effect module
+added to ``mslab/effects/`` are attached when the registry registers it). The TOML loader
+adds effects through the same methods. Every call costs O(1) amortised, whatever the
+scene's size (``tests/test_builder_cost.py``).
 """
 
 from __future__ import annotations
 
-import types
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from mslab.effects import Springs, registry
+from mslab.effects import Anchors, Damping, Gravity, Plane, Sphere, Springs, Wind, registry
 from mslab.effects.base import BuildContext, Effect
 from mslab.effects.schema import check_values, describe
 from mslab.errors import SceneError
+from mslab.scene import Scene, Settings, spring_effect
 from mslab.state import State
 from mslab.system import System
 
@@ -27,92 +29,48 @@ if TYPE_CHECKING:
     import numpy.typing as npt
 
 
-def plural(n: int, word: str) -> str:
-    """``"1 spring"``, ``"2 springs"``."""
-    return f"{n} {word}{'' if n == 1 else 's'}"
+class _Rows:
+    """An array grown by appending rows: doubling capacity, so an append costs O(1) amortised."""
 
+    def __init__(self, shape: tuple[int, ...], dtype: type):
+        self._data = np.zeros((16, *shape), dtype=dtype)
+        self.n = 0
 
-@dataclass(frozen=True)
-class Settings:
-    """Run settings a scene suggests: method, step, end time and output thinning."""
+    def _reserve(self, m: int) -> None:
+        if self.n + m > self._data.shape[0]:
+            grown = np.zeros((max(2 * self._data.shape[0], self.n + m), *self._data.shape[1:]),
+                             dtype=self._data.dtype)
+            grown[: self.n] = self._data[: self.n]
+            self._data = grown
 
-    method: str = "rk4"
-    dt: float = 1e-3
-    t_end: float = 1.0
-    save_every: int = 1
+    def append(self, row: Any) -> None:
+        """Add one row."""
+        self._reserve(1)
+        self._data[self.n] = row
+        self.n += 1
 
+    def extend(self, rows: np.ndarray) -> None:
+        """Add ``len(rows)`` rows."""
+        self._reserve(rows.shape[0])
+        self._data[self.n: self.n + rows.shape[0]] = rows
+        self.n += rows.shape[0]
 
-@dataclass
-class Scene:
-    """A built scene.
+    def __setitem__(self, index: int, value: Any) -> None:
+        self._data[index] = value
 
-    Attributes
-    ----------
-    system : System
-    state0 : State
-        Initial positions and velocities.
-    settings : Settings
-    name, description : str
-    spring_kind : ndarray of str, shape (n_springs,)
-        ``structural``, ``shear``, ``bend`` or any label the builder was given.
-    exact : callable or None
-        ``exact(t) -> (x, v)`` for scenes with a closed-form solution (oscillators),
-        t an array of times; x and v of shape (len(t), n_particles, dim).
-    """
-
-    system: System
-    state0: State
-    settings: Settings = field(default_factory=Settings)
-    name: str = "scene"
-    description: str = ""
-    spring_kind: np.ndarray = field(default_factory=lambda: np.array([], dtype=str))
-    exact: Callable | None = None
-
-    @property
-    def dim(self) -> int:
-        """Number of space dimensions (1, 2 or 3)."""
-        return self.system.dim
-
-    @property
-    def n_particles(self) -> int:
-        """Number of particles."""
-        return self.system.n_particles
-
-    @property
-    def effects(self) -> list[str]:
-        """Names of the effects the system evaluates."""
-        return self.system.effect_names()
-
-    def springs(self) -> Springs | None:
-        """Return the springs effect, if the scene has springs."""
-        for e in self.system.effects:
-            if isinstance(e, Springs):
-                return e
-        return None
-
-    def size_text(self) -> str:
-        """``"2 particles, 1 spring"``: the scene's size in words, singular where it is one."""
-        return f"{plural(self.n_particles, 'particle')}, {plural(len(self.spring_kind), 'spring')}"
-
-    def summary(self) -> dict:
-        """Size, effects and default run settings, as plain data (for tables and JSON)."""
-        s = self.settings
-        return {"scene": self.name, "description": self.description, "dim": self.dim,
-                "n_particles": self.n_particles, "n_springs": len(self.spring_kind),
-                "effects": self.effects, "method": s.method, "dt": s.dt, "t_end": s.t_end,
-                "save_every": s.save_every}
-
-    def with_settings(self, **changes) -> Scene:
-        """Return a copy of the scene with some run settings replaced."""
-        return replace(self, settings=replace(self.settings, **changes))
+    def view(self) -> np.ndarray:
+        """Return the rows so far, without a copy (read-only)."""
+        out = self._data[: self.n]
+        out.flags.writeable = False
+        return out
 
 
 class SceneBuilder:
     """Collects particles, springs and effects; ``build()`` returns a :class:`Scene`.
 
     Effect methods (``add_spring``, ``add_springs``, ``add_gravity``, ``add_damping``,
-    ``add_plane``, ``add_sphere``, ``add_anchors`` and those of any effect module added
-    to ``mslab/effects/``) come from the effect registry.
+    ``add_plane``, ``add_sphere``, ``add_anchors``, ``add_wind`` and those of any effect
+    module added to ``mslab/effects/``) are defined by the effect classes.
 
     Parameters
     ----------
@@ -124,10 +82,10 @@ class SceneBuilder:
         if dim not in (1, 2, 3):
             raise SceneError("dim", f"must be 1, 2 or 3, got {dim!r}")
         self.dim = dim
-        self._x: list[np.ndarray] = []
-        self._v: list[np.ndarray] = []
-        self._m: list[float] = []
-        self._pinned: list[bool] = []
+        self._x = _Rows((dim,), float)
+        self._v = _Rows((dim,), float)
+        self._m = _Rows((), float)
+        self._pinned = _Rows((), bool)
         self._entries: dict[type[Effect], list] = {}
         self.settings = Settings()
 
@@ -140,17 +98,23 @@ class SceneBuilder:
             raise SceneError(key, "must be finite numbers")
         return arr
 
+    def _checked(self, position: npt.ArrayLike, mass: float,
+                 velocity: npt.ArrayLike | None) -> tuple[np.ndarray, np.ndarray | float]:
+        """Return the checked position and velocity (0.0 for none) of a particle, or raise SceneError."""
+        if not np.isfinite(mass) or mass <= 0:
+            raise SceneError("mass", f"must be > 0, got {mass!r}")
+        x = self._vector(position, "position")
+        return x, 0.0 if velocity is None else self._vector(velocity, "velocity")
+
     def add_particle(self, position: npt.ArrayLike, mass: float = 1.0, pinned: bool = False,
                      velocity: npt.ArrayLike | None = None) -> int:
         """Add one mass point; return its index."""
-        if not np.isfinite(mass) or mass <= 0:
-            raise SceneError("mass", f"must be > 0, got {mass!r}")
-        self._x.append(self._vector(position, "position"))
-        vel = np.zeros(self.dim) if velocity is None else self._vector(velocity, "velocity")
-        self._v.append(np.zeros(self.dim) if pinned else vel)
+        x, vel = self._checked(position, mass, velocity)
+        self._x.append(x)
+        self._v.append(0.0 if pinned else vel)
         self._m.append(float(mass))
         self._pinned.append(bool(pinned))
-        return len(self._x) - 1
+        return self._x.n - 1
 
     def add_particles(self, positions: npt.ArrayLike, mass: npt.ArrayLike = 1.0,
                       velocity: npt.ArrayLike | None = None) -> np.ndarray:
@@ -159,33 +123,38 @@ class SceneBuilder:
         masses = np.broadcast_to(np.asarray(mass, dtype=float), (pos.shape[0],))
         vel = np.zeros_like(pos) if velocity is None else np.broadcast_to(
             np.asarray(velocity, dtype=float), pos.shape)
-        return np.array([self.add_particle(p, m, False, w) for p, m, w in zip(pos, masses, vel, strict=True)],
-                        dtype=np.int64)
+        if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(vel)) and np.all(np.isfinite(masses))
+                and np.all(masses > 0)):  # one by one, so that the first mistake is named
+            for p, m, w in zip(pos, masses, vel, strict=True):
+                self._checked(p, m, w)
+        start = self._x.n
+        self._x.extend(pos)
+        self._v.extend(vel)
+        self._m.extend(masses)
+        self._pinned.extend(np.zeros(pos.shape[0], dtype=bool))
+        return np.arange(start, self._x.n, dtype=np.int64)
 
     def pin(self, index: int) -> None:
         """Pin a particle in place (inv_mass = 0, velocity 0)."""
         self._check_index(index, "pinned")
         self._pinned[index] = True
-        self._v[index] = np.zeros(self.dim)
+        self._v[index] = 0.0
 
     def _check_index(self, i: int, key: str) -> int:
-        n = len(self._x)
+        n = self._x.n
         if not (isinstance(i, int | np.integer)) or not 0 <= int(i) < n:
             raise SceneError(key, f"particle index {i!r} out of range 0..{n - 1}")
         return int(i)
 
-    # -- effects (the methods come from the effect registry) ------------------------
-    def __getattr__(self, name: str):
-        if name.startswith("_"):
-            raise AttributeError(name)
-        found = registry.builder_method(name)
-        if found is None:
-            raise AttributeError(f"'SceneBuilder' object has no attribute '{name}'; effect methods: "
-                                 f"{', '.join(registry.builder_method_names())}")
-        return types.MethodType(found[1], self)
-
-    def __dir__(self) -> list[str]:
-        return sorted(set(super().__dir__()) | set(registry.builder_method_names()))
+    # -- effects: each method is defined once, by its effect class (here so that tools see it) -----
+    add_springs = Springs.add_springs
+    add_spring = Springs.add_spring
+    add_gravity = Gravity.add_gravity
+    add_damping = Damping.add_damping
+    add_anchors = Anchors.add_anchors
+    add_plane = Plane.add_plane
+    add_sphere = Sphere.add_sphere
+    add_wind = Wind.add_wind
 
     def entries(self, effect: type[Effect]) -> list:
         """Return the entries recorded for an effect class (the list its ``build`` receives); mutable."""
@@ -223,11 +192,11 @@ class SceneBuilder:
     @property
     def n_particles(self) -> int:
         """Number of particles added so far."""
-        return len(self._x)
+        return self._x.n
 
     def positions(self) -> np.ndarray:
-        """Positions of the particles added so far, shape (n_particles, dim)."""
-        return np.array(self._x, dtype=float).reshape(-1, self.dim)
+        """Positions of the particles added so far, shape (n_particles, dim): a read-only view, O(1)."""
+        return self._x.view()
 
     def build(self, name: str = "scene", description: str = "", exact: Callable | None = None) -> Scene:
         """Freeze everything into arrays; only the effects added here are created.
@@ -235,18 +204,36 @@ class SceneBuilder:
         Effects are ordered by their class's ``order`` (springs, gravity, damping, anchors,
         colliders), then by when they were first added.
         """
-        if not self._x:
+        if not self._x.n:
             raise SceneError("particles", "a scene needs at least one particle")
-        x = self.positions()
-        v = np.array(self._v, dtype=float).reshape(-1, self.dim)
-        mass = np.array(self._m)
-        pinned = np.array(self._pinned)
+        x, v = self._x.view().copy(), self._v.view().copy()
+        mass, pinned = self._m.view().copy(), self._pinned.view().copy()
         ctx = BuildContext(x, v, mass, pinned, self.dim)
         effects: list[Effect] = []
         for cls, entries in sorted(self._entries.items(), key=lambda item: item[0].order):
             if entries:
                 effects.extend(cls.build(entries, ctx))
         system = System(mass, pinned, effects, self.dim)
-        springs = next((e for e in effects if isinstance(e, Springs)), None)
-        kind = springs.kind if springs is not None else np.array([], dtype=str)
+        springs = spring_effect(effects)
+        kind = springs.hooke_springs().kind if springs is not None else np.array([], dtype=str)
         return Scene(system, State(x, v), self.settings, name, description, kind, exact)
+
+
+def _provide_methods(effect: type[Effect]) -> None:
+    """Give ``SceneBuilder`` the builder methods of an effect registered later (a course's own effect).
+
+    The built-in effects' methods are listed in the class body; this adds those of an
+    effect module found in ``mslab.effects`` after this module was imported.
+    """
+    for name in effect.builder_methods:
+        function = getattr(effect, name)
+        current = SceneBuilder.__dict__.get(name)
+        if current is function:
+            continue
+        if current is not None and name in _OWN:
+            raise ValueError(f"{effect.__name__}: builder method '{name}' would replace SceneBuilder.{name}")
+        setattr(SceneBuilder, name, function)
+
+
+_OWN = set(vars(SceneBuilder)) - set(registry.builder_method_names())
+registry.on_register(_provide_methods)

@@ -15,7 +15,8 @@ import numpy as np
 
 from mslab.effects.schema import describe, integer, number, string, vector
 from mslab.errors import SceneError
-from mslab.scenes.builder import Scene, SceneBuilder
+from mslab.scene import Scene
+from mslab.scenes.builder import SceneBuilder
 from mslab.scenes.oscillator import oscillator, oscillator_solution
 
 if TYPE_CHECKING:

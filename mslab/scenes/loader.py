@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from mslab.errors import SceneError
-from mslab.scenes.builder import Scene, Settings
+from mslab.scene import Scene, Settings
 from mslab.scenes.settings import RUN_KEYS, check_settings
 from mslab.scenes.toml_read import read_scene_file
 from mslab.scenes.validate import scene_from_doc
@@ -48,6 +48,10 @@ def scene_path(name_or_path: str | Path) -> Path:
     if path.is_dir():
         raise SceneError("scene", f"'{text}' is a directory, not a scene file; give a .toml file inside it "
                          "or a built-in scene name", text)
+    other = _not_a_file(path)
+    if other:
+        raise SceneError("scene", f"'{text}' {other}; give a regular .toml file or a built-in scene name",
+                         text)
     close = difflib.get_close_matches(Path(text).stem, scene_names(), n=1)
     hint = f" (did you mean '{close[0]}'?)" if close else ""
     raise SceneError(
@@ -57,13 +61,37 @@ def scene_path(name_or_path: str | Path) -> Path:
     )
 
 
-def load_scene(name_or_path: str | Path, **overrides) -> Scene:
+def _not_a_file(path: Path) -> str | None:
+    """Say what ``path`` is when it exists but is no regular file (a FIFO, a device, a symlink loop)."""
+    import os
+    import stat
+
+    try:
+        mode = os.stat(path).st_mode
+    except OSError as err:
+        if not os.path.islink(path):
+            return None
+        if err.errno == 40:  # ELOOP
+            return "is a symbolic link that leads back to itself (a loop)"
+        return f"is a symbolic link to '{os.readlink(path)}', which does not exist"
+    kinds = ((stat.S_ISFIFO, "a named pipe (FIFO)"), (stat.S_ISSOCK, "a socket"),
+             (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"))
+    for test, kind in kinds:
+        if test(mode):
+            return f"is {kind}, not a regular file (it is not read: that could wait forever)"
+    return None
+
+
+def load_scene(name_or_path: str | Path, *, max_bytes: int | None = None, **overrides) -> Scene:
     """Read a scene file (built-in name or path) and build it.
 
     Parameters
     ----------
     name_or_path : str or Path
         A name from :func:`scene_names` (``"chain"``) or the path of a TOML file.
+    max_bytes : int, optional
+        Memory the scene may take to build and run (default: the machine's memory); a
+        generator making more particles is refused before they are made.
     **overrides
         Run settings replacing the file's ``[run]`` values: ``method``, ``dt``, ``t_end``,
         ``save_every`` (``None`` values are ignored).
@@ -97,4 +125,4 @@ def load_scene(name_or_path: str | Path, **overrides) -> Scene:
 
         check_settings(given, source, dt=file_value("dt", Settings.dt),
                        t_end=file_value("t_end", Settings.t_end), note=" (given as an override)")
-    return scene_from_doc(doc, source, default_name=path.stem, overrides=given)
+    return scene_from_doc(doc, source, default_name=path.stem, overrides=given, max_bytes=max_bytes)

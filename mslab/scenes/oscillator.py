@@ -6,7 +6,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mslab.scenes.builder import Scene, SceneBuilder
+from mslab.scene import Scene
+from mslab.scenes.builder import SceneBuilder
 
 if TYPE_CHECKING:
     import numpy.typing as npt

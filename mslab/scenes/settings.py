@@ -11,6 +11,8 @@ from mslab.errors import SceneError
 
 #: keys of ``[run]`` (also the overrides ``load_scene`` accepts)
 RUN_KEYS = ("method", "dt", "t_end", "save_every")
+#: most steps a run may take: 1e12 steps at a microsecond each are 12 days
+MAX_STEPS = 10**12
 
 
 def read_run(run: Mapping, dt: float, t_end: float) -> dict:
@@ -63,10 +65,16 @@ def check_settings(settings: Mapping, source: str | None = None, *, dt: float | 
     dt = settings.get("dt", dt)
     t_end = settings.get("t_end", t_end)
     if dt is not None and t_end is not None:
+        key = "run.dt" if "dt" in settings else "run.t_end"
+        steps = float(t_end) / float(dt)
+        if steps > MAX_STEPS:
+            fail(key, f"dt = {float(dt):.3g} s and t_end = {float(t_end):.3g} s give {steps:.3g} steps, more "
+                      f"than {MAX_STEPS:.0e} (days of computing at a microsecond a step): choose "
+                      f"dt >= {float(t_end) / MAX_STEPS:.3g} s or a shorter t_end")
         try:
             step_count(float(t_end), float(dt))
         except ValueError as err:
-            fail("run.dt" if "dt" in settings else "run.t_end", str(err))
+            fail(key, str(err))
 
 
 def canonical(settings: Mapping) -> dict:

@@ -8,11 +8,53 @@ from pathlib import Path
 
 from mslab.errors import SceneError
 
+#: deepest nesting of arrays and tables a scene file may use (a scene needs 3: [[x, y], ...])
+MAX_DEPTH = 16
+
+
+def _nesting_problem(text: str) -> tuple[int, int] | None:
+    """``(line, depth)`` where brackets outside strings and comments first nest beyond :data:`MAX_DEPTH`.
+
+    Checked before parsing: the parser recurses once per level, so a file nested thousands
+    deep would end in a RecursionError.
+    """
+    depth, line, quote, comment = 0, 1, "", False
+    for ch in text:
+        if ch == "\n":
+            line, comment = line + 1, False
+            quote = "" if len(quote) == 1 else quote
+        elif comment:
+            continue
+        elif quote:
+            if ch == quote:
+                quote = ""
+        elif ch in "\"'":
+            quote = ch
+        elif ch == "#":
+            comment = True
+        elif ch in "[{":
+            depth += 1
+            if depth > MAX_DEPTH:
+                return line, depth
+        elif ch in "]}":
+            depth = max(depth - 1, 0)
+    return None
+
 
 def parse_scene_text(text: str, source: str | None = None) -> dict:
-    """Parse TOML text; a syntax error becomes ``SceneError("line N", ...)``."""
+    """Parse TOML text; a syntax error becomes ``SceneError("line N", ...)``.
+
+    A byte-order mark at the start (UTF-8 files written by some Windows editors) is skipped.
+    """
+    text = text.removeprefix("\ufeff")
+    deep = _nesting_problem(text)
+    if deep is not None:
+        raise SceneError(f"line {deep[0]}", f"arrays or tables nested more than {MAX_DEPTH} deep "
+                         f"(a scene needs at most 3: positions = [[x, y], ...])", source)
     try:
         return tomllib.loads(text)
+    except RecursionError:
+        raise SceneError("toml", f"nested too deep to read (more than {MAX_DEPTH} levels)", source) from None
     except tomllib.TOMLDecodeError as err:
         msg = str(err)
         match = re.search(r"\(at line (\d+), column (\d+)\)", msg)

@@ -13,15 +13,23 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import replace
 
+import numpy as np
+
 from mslab.effects.schema import check_keys, integer, string
 from mslab.errors import SceneError
+from mslab.scene import Scene, Settings
 from mslab.scenes.bodies import PARTICLE_KEYS, add_body
-from mslab.scenes.builder import Scene, SceneBuilder, Settings
+from mslab.scenes.builder import SceneBuilder
+from mslab.scenes.generators import GENERATORS, generator_shape
 from mslab.scenes.sections import add_body_effects, add_scene_effects, body_sections, scene_sections
 from mslab.scenes.settings import canonical, read_run
 
 #: keys of ``[scene]``
 SCENE_KEYS = ("name", "description", "dim")
+
+#: largest magnitude of a number in a scene file: a run squares and multiplies them (``k d^2 / 2``,
+#: ``k / m`` in the step-limit analysis), and 1e150 squared is still a double; SI scenes stay far below
+MAX_MAGNITUDE = 1e150
 
 
 def sections() -> tuple[str, ...]:
@@ -30,8 +38,13 @@ def sections() -> tuple[str, ...]:
 
 
 def scene_from_doc(doc: Mapping, source: str | None = None, default_name: str = "scene",
-                   overrides: Mapping | None = None) -> Scene:
+                   overrides: Mapping | None = None, max_bytes: int | None = None) -> Scene:
     """Check a parsed scene file and build it; ``overrides`` replace ``[run]`` values (checked by the caller).
+
+    Before anything is built: every number is finite and within :data:`MAX_MAGNITUDE`, and the
+    positions and velocities of the particles the generators would make (``16 dim`` bytes
+    each, the least a scene holds) fit in ``max_bytes`` (default: the machine's memory).
+    After building: the initial forces and energy are finite.
 
     Raises
     ------
@@ -39,11 +52,85 @@ def scene_from_doc(doc: Mapping, source: str | None = None, default_name: str = 
         The first problem found, naming the file (``source``) and the key.
     """
     try:
-        return _build(doc, default_name, overrides or {})
+        _check_magnitudes(doc, "")
+        _check_size(doc, max_bytes)
+        scene = _build(doc, default_name, overrides or {})
+        _check_initial_state(scene)
+        return scene
     except SceneError as err:
         if err.source is not None:
             raise
         raise SceneError(err.key, err.reason, source) from None
+
+
+def _check_magnitudes(value: object, key: str, where: str = "") -> None:
+    """Refuse a number beyond :data:`MAX_MAGNITUDE` (or a nan/inf), naming its key and position."""
+    if isinstance(value, Mapping):
+        for k, v in value.items():
+            _check_magnitudes(v, f"{key}.{k}" if key else str(k))
+    elif isinstance(value, list):
+        for i, v in enumerate(value):
+            if isinstance(v, Mapping):
+                _check_magnitudes(v, f"{key}[{i}]")
+            else:
+                _check_magnitudes(v, key, f"{where}[{i}]")
+    elif isinstance(value, int | float) and not isinstance(value, bool):
+        at = f" (at {where})" if where else ""
+        if value != value or abs(value) == float("inf"):
+            raise SceneError(key, f"must be a finite number, got {value!r}{at}")
+        if abs(value) > MAX_MAGNITUDE:
+            digits = len(str(abs(value))) if isinstance(value, int) else 0
+            text = f"an integer of {digits} digits" if digits > 15 else f"{value:.3g}"
+            raise SceneError(key, f"{text}{at} is beyond +-{MAX_MAGNITUDE:.0e}: a run squares such numbers "
+                             f"(energies k d^2 / 2, k / m), which overflows double precision")
+
+
+def _bodies(doc: Mapping) -> list[tuple[str, Mapping]]:
+    if isinstance(doc.get("bodies"), list):
+        return [(f"bodies[{b}].", t) for b, t in enumerate(doc["bodies"]) if isinstance(t, Mapping)]
+    return [("particles.", doc["particles"])] if isinstance(doc.get("particles"), Mapping) else []
+
+
+def _check_size(doc: Mapping, max_bytes: int | None) -> None:
+    """Refuse a scene whose generators would make more particles than memory holds (before making them)."""
+    import os
+
+    if max_bytes is None:
+        try:
+            max_bytes = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+        except (ValueError, OSError, AttributeError):
+            return
+    scene = doc.get("scene", {})
+    dim = scene.get("dim", 2) if isinstance(scene, Mapping) else 2
+    total, biggest = 0, ("particles.", 0)
+    for prefix, table in _bodies(doc):
+        generator = table.get("generator")
+        if generator not in GENERATORS or dim not in (1, 2, 3):
+            continue  # an explicit list is already in memory; other mistakes are named while building
+        n = int(np.prod(generator_shape(generator, table, prefix, dim)["shape"], dtype=object))
+        total += n
+        biggest = max(biggest, (prefix, n), key=lambda item: item[1])
+    need = total * 16 * dim  # x and v: the least a scene holds
+    if need > max_bytes:
+        raise SceneError(f"{biggest[0]}generator", f"{_big(total)} particles would need at least "
+                         f"{_big(need // 2**30)} GB (their positions and velocities alone), more than the "
+                         f"{max_bytes / 2**30:.3g} GB allowed (the memory budget); use fewer particles")
+
+
+def _big(n: int) -> str:
+    return f"{n:.3g}" if n < 10**300 else f"10^{len(str(n)) - 1}"
+
+
+def _check_initial_state(scene: Scene) -> None:
+    """Refuse a scene whose initial forces or energies overflow (values that each fit, but not together)."""
+    system, state = scene.system, scene.state0
+    with np.errstate(all="ignore"):
+        force = system.force(state.x, state.v)
+        energy = system.kinetic_energy(state.v) + system.potential_energy(state.x)
+    if not (np.all(np.isfinite(force)) and np.isfinite(energy)):
+        what = "forces" if not np.all(np.isfinite(force)) else "energy"
+        raise SceneError("scene", f"the initial {what} overflow double precision (inf or nan): positions, "
+                         f"masses, stiffnesses or velocities too large together")
 
 
 def _build(doc: Mapping, default_name: str, overrides: Mapping) -> Scene:

@@ -1,14 +1,15 @@
 """Stability limits along rays: the real interval, the imaginary limit, the oscillator limit.
 
-* Runge-Kutta methods: the imaginary limit is exact. With ``R = N/D``
-  (``N(z) = det(I - zA + z 1 b^T)``, ``D(z) = det(I - zA)``, polynomials recovered from
-  their values on the unit circle), ``|R(iy)| <= 1`` is ``E(y) = |N(iy)|^2 - |D(iy)|^2 <= 0``,
-  an even polynomial. Coefficients of ``E`` at round-off level (relative to the size of the
-  products that form them) are zero; then the sign of the lowest remaining one decides
-  small ``y`` — positive, however slightly, means the limit 0 (forward Euler, Heun, and
-  methods of order 5 and higher such as Dormand-Prince) — and the smallest positive root
-  where ``E`` turns positive is the limit. On the undamped oscillator the map has
-  eigenvalues ``R(+-i dt w)``, so the oscillator limit is the imaginary limit.
+* Runge-Kutta methods: the imaginary limit is exact (:mod:`mslab.stability.exact`). With
+  ``R = N/D`` (``N(z) = det(I - zA + z 1 b^T)``, ``D(z) = det(I - zA)``), ``|R(iy)| <= 1`` is
+  ``E(y) = |N(iy)|^2 - |D(iy)|^2 <= 0``, an even polynomial, formed in rational arithmetic
+  from the coefficients as given. For float coefficients, coefficients of ``E`` at their
+  rounding level (relative to the size of the products that form them) are zero; then the
+  sign of the lowest remaining one decides small ``y`` — positive, however slightly, means
+  the limit 0 (forward Euler, Heun, and methods of order 5 and higher such as
+  Dormand-Prince) — and the smallest positive root where ``E`` turns positive, isolated
+  exactly, is the limit. On the undamped oscillator the map has eigenvalues
+  ``R(+-i dt w)``, so the oscillator limit is the imaginary limit.
 * Every other limit is found on the method's own map: a scan of the ray
   ``|dt lam| in [S_MIN, S_MAX]`` (then bisection) with ``rho <= 1 + TOL``, where ``TOL``
   only absorbs the round-off of eigenvalues near a double eigenvalue (the end of the
@@ -24,6 +25,7 @@ from functools import lru_cache
 import numpy as np
 
 from mslab.integrators.base import Integrator, get_method
+from mslab.stability.exact import imag_limit_exact
 from mslab.stability.functions import amplification, amplification_matrix, spectral_radius, tableau
 
 #: ``rho <= 1 + TOL`` counts as stable in the scans (round-off of near-defective eigenvalues).
@@ -74,34 +76,6 @@ def rk_polynomials(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return _poly_from_circle(num)[: s + 1], _poly_from_circle(np.linalg.det(mats))[: s + 1]
 
 
-def _abs2_on_axis(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``|p(iy)|^2`` as coefficients in y (ascending) and the size of the products forming each."""
-    q = p * (1j ** np.arange(p.size))
-    qc = p * ((-1j) ** np.arange(p.size))
-    return np.real(np.convolve(q, qc)), np.convolve(np.abs(p), np.abs(p))
-
-
-def _rk_imag_limit(A: np.ndarray, b: np.ndarray) -> float:
-    N, D = rk_polynomials(A, b)
-    eN, sN = _abs2_on_axis(N)
-    eD, sD = _abs2_on_axis(D)
-    E = eN - eD
-    size = sN + sD
-    E[np.abs(E) <= 64 * np.finfo(float).eps * np.maximum(size, 1.0)] = 0.0
-    nonzero = np.flatnonzero(E)
-    if nonzero.size == 0:
-        return np.inf                       # |R(iy)| = 1 on the whole axis
-    if E[nonzero[0]] > 0:
-        return 0.0                          # |R(iy)| > 1 for small y, however slightly
-    roots = np.roots(E[::-1])
-    real = np.sort([r.real for r in roots if r.real > 0 and abs(r.imag) <= 1e-9 * abs(r)])
-    poly = np.polynomial.Polynomial(E)
-    for r in real:
-        if poly(r * (1 + 1e-7)) > 0:
-            return float(r)
-    return np.inf
-
-
 @lru_cache(maxsize=256)
 def _real_interval(m: Integrator) -> float:
     return -_ray_limit(lambda s: np.abs(amplification(m, -s)))
@@ -109,9 +83,8 @@ def _real_interval(m: Integrator) -> float:
 
 @lru_cache(maxsize=256)
 def _imag_limit(m: Integrator) -> float:
-    tab = tableau(m)
-    if tab is not None:
-        return _rk_imag_limit(*tab)
+    if tableau(m) is not None:  # exactly, from the coefficients as given
+        return imag_limit_exact(m.coefficients["A"], m.coefficients["b"])
     return _ray_limit(lambda s: np.maximum(np.abs(amplification(m, 1j * s)),
                                            np.abs(amplification(m, -1j * s))))
 

@@ -17,13 +17,15 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from mslab.integrators.base import Integrator, get_method
-from mslab.scenes.builder import Scene
+from mslab.scene import Scene
 from mslab.stability.functions import amplification
-from mslab.stability.limits import _ray_limit, oscillator_limit
+from mslab.stability.limits import S_MIN, _ray_limit, oscillator_limit
 from mslab.state import State
 from mslab.threads import single_threaded_blas
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from mslab.system import System
 
 
@@ -57,9 +59,6 @@ def linearise(scene: Scene, x: np.ndarray | None = None, v: np.ndarray | None = 
         ``df/dv``, None when no effect depends on velocity.
     inv_mass : ndarray, shape (n_free,)
     """
-    from mslab.effects.base import block_diagonal
-    from mslab.effects.colliders import PenaltyCollider
-
     system = scene.system
     x = scene.state0.x if x is None else x
     v = scene.state0.v if v is None else v
@@ -68,12 +67,8 @@ def linearise(scene: Scene, x: np.ndarray | None = None, v: np.ndarray | None = 
     D = None
     for e in system.effects:
         kx, kv = e.jacobians(x, v)
-        if isinstance(e, PenaltyCollider) and contacts == "possible":
-            _, normal, _ = e._contact(x)
-            touching = np.linalg.norm(normal, axis=1, keepdims=True) > 0
-            normal = np.where(touching, normal, 1.0 / np.sqrt(x.shape[1]))
-            blocks = -e.stiffness * normal[:, :, None] * normal[:, None, :]
-            kx = block_diagonal(blocks, np.arange(system.n_particles), system.n_particles)
+        if e.may_touch and contacts == "possible":
+            kx = e.contact_jacobian(x)
         if kx is not None:
             K = K + kx
         if kv is not None:
@@ -147,7 +142,33 @@ def _dt_limit(m: Integrator, lam: np.ndarray) -> float:
         z = s[:, None] * unit[None, :]
         return np.max(np.abs(amplification(m, z)), axis=1)
 
-    return _ray_limit(rho) / top
+    limit = _ray_limit(rho)
+    if limit == 0.0:  # unstable at S_MIN, yet damping may leave a small stable step
+        limit = _small_limit(rho)
+    return limit / top
+
+
+def _small_limit(rho: Callable[[np.ndarray], np.ndarray], smallest: float = 1e-12) -> float:
+    """Largest ``s < S_MIN`` with ``rho <= 1`` on the ray (0 when none down to ``smallest``).
+
+    A method whose stability region touches the imaginary axis only at 0 (forward Euler,
+    Heun) is stable on a damped mode ``lam = -zeta w + i w sqrt(1 - zeta^2)`` for small
+    steps only: forward Euler for ``dt <= 2 zeta / w``, which on a lightly damped stiff scene
+    is far below the scan's ``S_MIN``. Stable here means ``rho <= 1`` with no tolerance:
+    near ``s = 0`` the margin ``1 - rho`` is of order ``zeta s``, not round-off.
+    """
+    grid = np.geomspace(S_MIN, smallest, 241)  # descending
+    stable = np.flatnonzero(rho(grid) <= 1.0)
+    if stable.size == 0:
+        return 0.0
+    lo, hi = grid[stable[0]], grid[stable[0] - 1]
+    while hi - lo > 1e-13 * hi:
+        mid = 0.5 * (lo + hi)
+        if rho(np.array([mid]))[0] <= 1.0:
+            lo = mid
+        else:
+            hi = mid
+    return float(lo)
 
 
 #: per System: eigenvalues and limits by (contacts, state bytes[, method]); scenes are not mutated

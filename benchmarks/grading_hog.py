@@ -1,0 +1,92 @@
+"""Grading time of a class of 30: quiet, and with one CPU hog among them (issue 20).
+
+Usage: ``python benchmarks/grading_hog.py [--repeats 3] [--exercise 07_stability_function]``.
+Every student has the reference solution of the exercise; in the second class one of the
+30 instead forks 40 busy loops (each ``setsid``) at import and sleeps in every call. The
+runs alternate quiet/hog; the figure is the median of each, and their ratio. Prints one
+JSON document (machine, load, isolation and cgroup, times, ratio, marks).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import shutil
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from mslab.grading import find_exercises, grade  # noqa: E402
+
+HOG = '''
+import subprocess, sys
+for _ in range(40):
+    try:
+        subprocess.Popen([sys.executable, "-c", "while True: pass"], start_new_session=True,
+                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    except OSError:
+        break
+
+def __getattr__(name):
+    import time
+    def sleeper(*args, **kwargs):
+        time.sleep(1000)
+    return sleeper
+'''
+
+
+def make_class(base: Path, exercise: str, hog: bool) -> Path:
+    (ex,) = [e for e in find_exercises(ROOT / "exercises") if e.name == exercise]
+    cls = base / ("hog" if hog else "quiet")
+    for k in range(30):
+        folder = cls / f"student{k:02d}" / exercise
+        folder.mkdir(parents=True)
+        if hog and k == 0:
+            (folder / ex.module).write_text(HOG)
+        else:
+            shutil.copyfile(ex.folder / ex.module, folder / ex.module)
+    return cls
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--exercise", default="07_stability_function")
+    ap.add_argument("--timeout", type=float, default=10.0)
+    args = ap.parse_args()
+    base = Path(tempfile.mkdtemp(prefix="mslab-hog-bench-"))
+    times = {"quiet": [], "hog": []}
+    marks = {}
+    load0 = os.getloadavg()
+    try:
+        classes = {name: make_class(base, args.exercise, name == "hog") for name in times}
+        for _ in range(args.repeats):
+            for name, cls in classes.items():
+                t0 = time.perf_counter()
+                results = grade([cls], source=ROOT / "exercises", jobs=2, timeout=args.timeout,
+                                only=[args.exercise])
+                times[name].append(time.perf_counter() - t0)
+                print(f"{name}: {times[name][-1]:.1f} s (load {os.getloadavg()[0]:.1f})", file=sys.stderr)
+                honest = [r for r in results if not (name == "hog" and r.student == "student00")]
+                marks[name] = sum(r.total == r.max_points for r in honest), len(honest)
+                marks["resources"] = results[0].resources
+    finally:
+        shutil.rmtree(base, ignore_errors=True)
+    med = {k: statistics.median(v) for k, v in times.items()}
+    print(json.dumps({"machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
+                                 f"{platform.system()} {platform.release()}",
+                      "load_before": load0, "load_after": os.getloadavg(), "exercise": args.exercise,
+                      "timeout": args.timeout, "resources": marks.pop("resources"), "times_s": times,
+                      "median_s": med, "ratio_hog_over_quiet": med["hog"] / med["quiet"],
+                      "honest_full_marks": marks}, indent=1))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,49 @@
+"""The backend of a whole job: one decision for every run of a sweep.
+
+A sweep (a work-precision diagram, a convergence study, an energy-drift comparison) runs
+many short simulations of one scene. Deciding per run, ``auto`` would send each of them to
+numpy (no single run repays loading the compiled code) and the sweep would run 40-170x
+slower than compiled. The job is known in advance, so it is decided once: when the numpy
+time predicted for *all* its runs (the fixed cost model :func:`mslab.fast.numpy_seconds`,
+never a measurement) exceeds the one-time load :data:`mslab.fast.LOAD_SECONDS`, every run
+that the compiled loop can step takes it, the others numpy. The same job takes the same
+backends on every machine, so its results (equal on both backends to round-off) are
+reproducible.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from typing import TYPE_CHECKING
+
+from mslab.fast import LOAD_SECONDS, check_backend, numpy_seconds, unsupported
+
+if TYPE_CHECKING:
+    from mslab.integrators.base import Integrator
+    from mslab.system import System
+
+
+def job_backends(system: System, runs: Iterable[tuple[Integrator, int]],
+                 backend: str | None = None) -> list[str]:
+    """Return the backend of each run of a job on one system: ``"numba"`` or ``"numpy"``.
+
+    Parameters
+    ----------
+    system : System
+        The scene's system, shared by every run.
+    runs : iterable of (Integrator, int)
+        Each run's method and its number of steps (repeats of a timed run listed as runs).
+    backend : {"auto", "numba", "numpy"}, optional
+        The job's backend (None: ``$MSLAB_BACKEND`` or ``"auto"``). ``"numba"`` and
+        ``"numpy"`` are kept as asked (``"numba"`` still refuses, run by run, where the
+        compiled loop does not apply); ``"auto"`` is decided for the whole job.
+    """
+    runs = list(runs)
+    name = check_backend(backend)
+    if name != "auto":
+        return [name] * len(runs)
+    able = [unsupported(system, integrator) is None for integrator, _ in runs]
+    total = sum(numpy_seconds(system, integrator, n) for (integrator, n), ok in zip(runs, able, strict=True)
+                if ok)
+    compiled = total > LOAD_SECONDS
+    return ["numba" if ok and compiled else "numpy" for ok in able]

@@ -1,0 +1,375 @@
+"""Grading v3 (issue 20): nothing the sandbox says is trusted; one student cannot touch another.
+
+1. Leaks: submissions that send a hidden test's inputs back in the sandbox's words (an
+   exception class named ``<wire>``, a class name or an exit code carrying the data). A
+   unique marker planted in a hidden test's inputs must appear nowhere in the reports,
+   the JSON, the CSV or the journal; the same marker in a public test *does* reach its
+   report (so the leakers do send it, and this test can fail).
+2. A CPU hog (busy loops forked with ``setsid`` at import) graded beside an honest
+   classmate: the classmate keeps full marks; the hog ends with its grader.
+3. Grading as an unprivileged user (a user created for the test, when run as root).
+
+Each grading runs exercise 07 only; the runs are bounded (``timeout``) and synchronise on
+processes seen in /proc, never on sleeps.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import pwd
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+
+from mslab.grading import grade
+from mslab.grading.box import PREFIX
+from mslab.grading.box import setup as setup_cgroups
+from mslab.grading.box import teardown as teardown_cgroups
+from mslab.grading.isolation import _probe
+from mslab.grading.report import format_report, gradebook_rows
+
+ROOT = Path(__file__).resolve().parents[1]
+SOURCE = ROOT / "exercises"
+TARGET, MODULE = "07_stability_function", "stability_function.py"
+HIDDEN_MARK, PUBLIC_MARK = "4271953", "3859137"
+MODES = [m for m in ("bwrap", "namespaces") if sys.platform.startswith("linux") and _probe(m)]
+
+MARKED_TEST = """
+
+@pytest.mark.points(1)
+def test_marked_inputs_{kind}(student):
+    A = np.array([[0.0, 0.0], [0.{mark}, 0.0]])
+    b = np.array([0.5, 0.5])
+    z = np.array([-0.{mark} + 0.{mark}j, -1.0])
+    R = 1.0 + z * (b[0] + b[1]) + z * z * b[1] * A[1, 0]
+    check_array(student.stability_function(A, b, z), R, rtol=1e-10, atol=1e-12, what="R(z)")
+"""
+
+#: every leaker sends its arguments back in a way the old grader quoted
+LEAKERS = {
+    "wire_class": """
+        import numpy as np
+        def stability_function(A, b, z):
+            raise type("<wire>", (Exception,), {})(repr(np.asarray(A).tolist()))
+        def real_stability_interval(A, b, tol=1e-12):
+            raise type("<wire>", (Exception,), {})(repr(np.asarray(A).tolist()))
+    """,
+    "class_name": """
+        import re
+        import numpy as np
+        def _leak(A):
+            return type("leak_" + re.sub(r"\\W", "_", repr(np.asarray(A).tolist())), (), {})()
+        def stability_function(A, b, z):
+            return _leak(A)
+        def real_stability_interval(A, b, tol=1e-12):
+            return _leak(A)
+    """,
+    "exception_name": """
+        import re
+        import numpy as np
+        def _leak(A):
+            return type("L_" + re.sub(r"\\W", "_", repr(np.asarray(A).tolist())), (ValueError,), {})()
+        def stability_function(A, b, z):
+            raise _leak(A)
+        def real_stability_interval(A, b, tol=1e-12):
+            raise _leak(A)
+    """,
+    "exit_message": """
+        import sys
+        import numpy as np
+        def stability_function(A, b, z):
+            sys.exit(repr(np.asarray(A).tolist()))
+        def real_stability_interval(A, b, tol=1e-12):
+            sys.exit(repr(np.asarray(A).tolist()))
+    """,
+    "exit_code": """
+        import os
+        import numpy as np
+        def stability_function(A, b, z):
+            os._exit(int(round(np.asarray(A)[-1, 0] * 100)) % 256)
+        def real_stability_interval(A, b, tol=1e-12):
+            os._exit(7)
+    """,
+}
+
+
+def _source_with_markers(base: Path) -> Path:
+    """A copy of exercise 07 whose public and hidden tests call with marked inputs."""
+    src = base / "source"
+    shutil.copytree(SOURCE / TARGET, src / TARGET, ignore=shutil.ignore_patterns("__pycache__"))
+    for name, kind, mark in (
+        ("test_hidden.py", "hidden", HIDDEN_MARK),
+        ("test_public.py", "public", PUBLIC_MARK),
+    ):
+        path = src / TARGET / name
+        text = path.read_text()
+        if "check_array" not in text.split("def ")[0]:
+            text = text.replace(
+                "import pytest\n", "import pytest\n\nfrom mslab.grading.checks import check_array\n", 1
+            )
+        path.write_text(text + MARKED_TEST.format(kind=kind, mark=mark))
+    return src
+
+
+@pytest.fixture(
+    scope="module", params=MODES or [pytest.param("none", marks=pytest.mark.skip("no namespaces"))]
+)
+def leaked(request, tmp_path_factory):
+    """Grade the leakers and an honest classmate (the reference) against the marked tests."""
+    base = tmp_path_factory.mktemp(f"leak-{request.param}")
+    src = _source_with_markers(base)
+    cls = base / "class"
+    for name, code in LEAKERS.items():
+        (cls / name / TARGET).mkdir(parents=True)
+        (cls / name / TARGET / MODULE).write_text(textwrap.dedent(code))
+    (cls / "honest" / TARGET).mkdir(parents=True)
+    shutil.copyfile(SOURCE / TARGET / MODULE, cls / "honest" / TARGET / MODULE)
+    journal = base / "book.journal"
+    results = grade([cls], source=src, jobs=2, timeout=5.0, isolation=request.param, journal=journal)
+    texts = [format_report(r) for r in results]
+    texts.append(json.dumps([r.to_dict() for r in results]))
+    texts.append("\n".join(",".join(row) for row in gradebook_rows(results)))
+    texts.append(journal.read_text())
+    return {r.student: r for r in results}, texts
+
+
+def test_honest_classmate_passes_the_marked_tests(leaked):
+    honest = leaked[0]["honest"]
+    assert honest.total == honest.max_points > 0, [
+        (t.test, t.reason) for e in honest.exercises for t in e.tests
+    ]
+
+
+def test_the_leakers_do_send_the_public_marker(leaked):
+    """The channel is real: in a public test the student's own message (bounded) is shown."""
+    results = leaked[0]
+    for name in ("wire_class", "class_name", "exception_name", "exit_message"):
+        (marked,) = [
+            t for e in results[name].exercises for t in e.tests if t.test.endswith("marked_inputs_public")
+        ]
+        assert PUBLIC_MARK in marked.reason, (name, marked.reason)
+    (code,) = [t for e in results["exit_code"].exercises for t in e.tests if t.test.endswith("inputs_public")]
+    assert "exited with code 39" in code.reason  # round(0.3859137 * 100): the runner saw the status
+
+
+def test_the_hidden_marker_appears_nowhere(leaked):
+    results, texts = leaked
+    for text in texts:
+        assert HIDDEN_MARK not in text
+    for name in LEAKERS:
+        assert results[name].total == 0
+        hidden = [
+            t.reason for e in results[name].exercises for t in e.tests if t.test.startswith("test_hidden")
+        ]
+        assert hidden and all(r.startswith("hidden test: ") for r in hidden), hidden
+        assert not any("43" in r or "code" in r for r in hidden), hidden  # no exit code either
+
+
+def test_hidden_reasons_are_fixed_phrases_per_kind(leaked):
+    results = leaked[0]
+    phrase = {
+        "wire_class": "raised an exception",
+        "exception_name": "raised an exception",
+        "class_name": "answered something that is not plain data",
+        "exit_code": "the process died",
+        "exit_message": "raised an exception",
+    }
+    for name, expected in phrase.items():
+        reasons = {
+            t.reason for e in results[name].exercises for t in e.tests if t.test.startswith("test_hidden")
+        }
+        assert reasons == {f"hidden test: {expected}"}, (name, reasons)
+
+
+# -- a CPU hog beside an honest classmate -----------------------------------------------------
+
+HOG = """
+import subprocess, sys
+for _ in range(40):
+    try:
+        subprocess.Popen([sys.executable, "-c", "# mslab-hog-loop\\nwhile True: pass"],
+                         start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    except OSError:
+        break
+
+def stability_function(A, b, z):
+    import time
+    time.sleep(1000)
+
+def real_stability_interval(A, b, tol=1e-12):
+    import time
+    time.sleep(1000)
+"""
+
+
+def _hog_loops() -> int:
+    n = 0
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                n += b"mslab-hog-loop" in (entry / "cmdline").read_bytes()
+            except OSError:
+                pass
+    return n
+
+
+def _wait_for(condition, limit: float, what: str) -> None:
+    end = time.monotonic() + limit
+    while not condition():
+        if time.monotonic() > end:
+            raise AssertionError(f"{what} within {limit:g} s")
+        time.sleep(0.05)
+
+
+@pytest.mark.skipif(not MODES, reason="no namespaces here: a hog's loops would outlive its sandbox")
+def test_a_cpu_hog_costs_an_honest_classmate_nothing(tmp_path):
+    (tmp_path / "hog" / TARGET).mkdir(parents=True)
+    (tmp_path / "hog" / TARGET / MODULE).write_text(HOG)
+    (tmp_path / "honest" / TARGET).mkdir(parents=True)
+    shutil.copyfile(SOURCE / TARGET / MODULE, tmp_path / "honest" / TARGET / MODULE)
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    hog = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "mslab",
+            "grade",
+            str(tmp_path / "hog"),
+            "--source",
+            str(SOURCE),
+            "--exercise",
+            TARGET,
+            "--timeout",
+            "30",
+            "--jobs",
+            "1",
+        ],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
+    try:
+        _wait_for(lambda: _hog_loops() >= 10, 60, "the hog did not start its loops")
+        (honest,) = grade([tmp_path / "honest"], source=SOURCE, jobs=1, timeout=2.0, only=[TARGET])
+        assert _hog_loops() >= 1, "the hog stopped before its classmate was graded: the test proved nothing"
+        assert honest.total == honest.max_points > 0, [
+            (t.test, t.reason) for e in honest.exercises for t in e.tests
+        ]
+    finally:
+        hog.send_signal(signal.SIGTERM)  # the grader stops its runners and removes its cgroups
+        try:
+            hog.wait(timeout=60)
+        except subprocess.TimeoutExpired:
+            os.killpg(hog.pid, signal.SIGKILL)
+            hog.wait()
+    _wait_for(lambda: _hog_loops() == 0, 30, "the hog's loops outlived its grader")
+    config, _ = setup_cgroups(1)  # a fresh grading removes what a killed one left; none is left here
+    try:
+        for parent in (config or {}).get("dirs", {}).values():
+            assert not list(Path(parent).parent.glob(f"{PREFIX}{hog.pid}*"))
+    finally:
+        teardown_cgroups(config)
+
+
+# -- an unprivileged grader -------------------------------------------------------------------
+
+USER = "mslab-grade-test"
+
+
+def _closed_ancestor(path: str) -> str | None:
+    """The outermost folder on ``path`` that other users cannot enter, if any."""
+    parts = Path(path).parts
+    for k in range(2, len(parts) + 1):
+        folder = os.path.join(*parts[:k])
+        if os.path.isdir(folder) and not os.stat(folder).st_mode & 0o001:
+            return folder
+    return None
+
+
+@pytest.mark.skipif(
+    os.geteuid() != 0
+    or not shutil.which("useradd")
+    or not shutil.which("setpriv")
+    or not shutil.which("unshare"),
+    reason="needs root, useradd, setpriv and unshare to create a user and grade as it",
+)
+@pytest.mark.skipif(not MODES, reason="no namespaces here")
+def test_grading_as_an_unprivileged_user(tmp_path):
+    try:
+        pwd.getpwnam(USER)
+    except KeyError:
+        subprocess.run(
+            ["useradd", "--system", "--no-create-home", "--shell", "/usr/sbin/nologin", USER],
+            check=True,
+            capture_output=True,
+            timeout=60,
+        )
+    uid = pwd.getpwnam(USER).pw_uid
+    work = Path(tempfile.mkdtemp(prefix="mslab-unpriv-", dir="/tmp"))
+    try:
+        os.chmod(work, 0o755)
+        (work / "alice" / TARGET).mkdir(parents=True)
+        shutil.copyfile(SOURCE / TARGET / MODULE, work / "alice" / TARGET / MODULE)
+        for p in (work / "alice", work / "alice" / TARGET):
+            os.chmod(p, 0o755)
+        grade_cmd = [
+            sys.executable,
+            "-m",
+            "mslab",
+            "grade",
+            str(work / "alice"),
+            "--source",
+            str(SOURCE),
+            "--exercise",
+            TARGET,
+            "--json",
+        ]
+        # where the interpreter sits in a folder closed to other users (pyenv under /root), the
+        # test opens a view of it in a private mount namespace: the system is not changed
+        closed = _closed_ancestor(os.path.realpath(sys.base_prefix))
+        setup = ""
+        if closed:
+            inner = os.path.join(closed, Path(os.path.realpath(sys.base_prefix)).relative_to(closed).parts[0])
+            setup = (
+                f"mkdir -p {work}/.keep && mount --bind {inner} {work}/.keep && "
+                f"mount -t tmpfs -o mode=755 tmpfs {closed} && mkdir -p {inner} && "
+                f"mount --bind {work}/.keep {inner} && "
+            )
+        env = dict(
+            os.environ,
+            PYTHONPATH=str(ROOT),
+            HOME=str(work),
+            TMPDIR="/tmp",
+            MSLAB_CACHE_DIR=str(work / "cache"),
+            NUMBA_CACHE_DIR=str(work / "cache"),
+        )
+        script = setup + "exec setpriv --reuid={0} --regid={0} --clear-groups {1}".format(
+            uid, " ".join(f"'{a}'" for a in grade_cmd)
+        )
+        proc = subprocess.run(
+            ["unshare", "--mount", "--propagation", "private", "sh", "-c", script],
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=240,
+        )
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        doc = json.loads(proc.stdout)
+        assert doc["total"] == doc["max"] > 0, doc
+        assert "isolated by" in doc["isolation"]
+        warnings = [line for line in proc.stderr.splitlines() if "warning" in line]
+        if doc["resources"].startswith("no cgroup"):
+            assert len(warnings) == 1 and "no cgroup" in warnings[0], proc.stderr
+        else:
+            assert warnings == [], proc.stderr
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
