@@ -479,8 +479,11 @@ def test_nodepy_own_order_as_second_opinion(nodepy_methods):
         assert ours == theirs, key
 
 
-def test_order_of_13_stage_tableaux_is_fast(nodepy_methods):
-    """Worst cases: every condition through order 9 evaluated on dense 13 x 13 tableaux."""
+def test_order_of_13_stage_tableaux(nodepy_methods):
+    """Worst cases: every condition through order 9 evaluated on dense 13 x 13 tableaux.
+
+    How long it takes is printed, not asserted (no test depends on timing, issue 18).
+    """
     _, library = nodepy_methods
     pd8 = library["PD8"]                               # Prince-Dormand 8(7), 13 stages, floats
     start = time.perf_counter()
@@ -498,4 +501,3 @@ def test_order_of_13_stage_tableaux_is_fast(nodepy_methods):
         derive.order(rk_method(A, b, "collocation13", "implicit_rk"))
     exact_time = time.perf_counter() - start
     print(f"13 stages: PD8 floats {float_time:.3f} s, dense exact collocation {exact_time:.3f} s")
-    assert float_time < 10 and exact_time < 10
