@@ -91,9 +91,11 @@ def drift_words(drift: np.ndarray | float, method: str) -> str:
 
     ``drift``: the relative drift at each saved sample (a number: the final one only). Below
     1e-6 nothing is said. A drift whose largest size in the second half of the run is within
-    1.5 times that of the first half is bounded (a symplectic method's energy error
-    oscillates; a steady drift doubles from the middle to the end); otherwise its sign says
-    whether the method adds energy or damps it numerically.
+    1.5 times that of the first half, and that oscillates (its path is more than four times
+    its range), is bounded (a symplectic method's energy error oscillates; a steady drift
+    doubles from the middle to the end);
+    otherwise its sign says whether the method adds energy or damps it numerically (a
+    one-sided loss that levels off, implicit Euler on a cloth coming to rest, is damping).
     """
     series = np.atleast_1d(np.asarray(drift, dtype=float))
     final = float(series[-1]) if series.size else math.nan
@@ -102,8 +104,11 @@ def drift_words(drift: np.ndarray | float, method: str) -> str:
     if series.size >= 4 and np.all(np.isfinite(series)):
         half = series.size // 2
         early, late = np.abs(series[:half + 1]).max(), np.abs(series[half:]).max()
-        if late <= 1.5 * early:
-            return (f" (bounded: the ledger oscillates within +-{np.abs(series).max():.1e} without growing, "
+        size = np.abs(series).max()
+        # oscillating, not settling: the path travelled is several times the range covered
+        oscillates = np.abs(np.diff(series)).sum() > 4.0 * (series.max() - series.min())
+        if late <= 1.5 * early and oscillates:
+            return (f" (bounded: the ledger oscillates within +-{size:.1e} without growing, "
                     f"{method}'s energy error)")
     if final < 0:
         return f" (the ledger lost energy: numerical damping of {method})"
