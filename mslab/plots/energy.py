@@ -55,14 +55,19 @@ def plot_energy_error(trajs: Sequence[Trajectory], ax: Axes | None = None) -> Ax
     (:meth:`mslab.simulate.Energy.relative_drift`: the largest kinetic energy in the first
     quarter of the run, since the zero of potential energy is arbitrary).
 
+    Every other run is drawn dashed, so that runs whose curves coincide stay visible.
+
     Parameters
     ----------
     trajs : sequence of Trajectory
     """
     ax = ax if ax is not None else plt.gca()
-    for tr in trajs:
+    for i, tr in enumerate(trajs):
         drift = np.abs(tr.energy.relative_drift())
-        ax.semilogy(tr.t[1:], np.maximum(drift[1:], 1e-17), label=tr.stats.method)
+        # every other run dashed and on top: runs whose errors coincide (the two symplectic
+        # Eulers, implicit Euler by Newton and by fixed point) stay visible as a pair
+        ax.semilogy(tr.t[1:], np.maximum(drift[1:], 1e-17), label=tr.stats.method,
+                    linestyle="-" if i % 2 == 0 else "--", zorder=2 + i % 2)
     ax.set_xlabel("time t [s]")
     ax.set_ylabel("relative energy error")
     ax.legend(loc="best", fontsize="small", ncol=2)
