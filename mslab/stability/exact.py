@@ -6,7 +6,7 @@ degree ``s``. Its coefficients are computed here from the coefficients as given,
 ``fractions.Fraction``: exact ones exactly, floats at their exact binary value. A
 double-precision ``E`` of degree 20-32 cannot place its first root (SSP104's limit came out
 as 4.925085 instead of 4.921453, with ``|R(iy)| > 1`` there); the exact one can, with
-sympy's exact real root isolation (intervals with rational ends, refined to ``1e-18``).
+exact real-root isolation (Sturm sequences in rational arithmetic, refined to ``1e-18``).
 
 When a coefficient is a float (or irrational), the coefficients of ``E`` that should vanish
 only do so up to the coefficients' own rounding: those below ``64 eps`` times the size of
@@ -155,14 +155,104 @@ def imag_limit_exact(A: Sequence[Sequence[Any]], b: Sequence[Any]) -> float:
 
 
 def _first_crossing(F: list[Fraction]) -> float:
-    """Return sqrt of the smallest positive root of odd multiplicity of ``F`` (``F(0) < 0``), or inf."""
-    import sympy as sp
+    """Return sqrt of the smallest positive root of odd multiplicity of ``F`` (``F(0) < 0``), or inf.
 
-    u = sp.Symbol("u")
-    poly = sp.Poly([sp.Rational(c.numerator, c.denominator) for c in reversed(F)], u, domain=sp.QQ)
-    for (lo, hi), multiplicity in sorted(poly.intervals(), key=lambda r: r[0][0]):
-        if hi <= 0 or multiplicity % 2 == 0:
-            continue
-        lo, hi = poly.refine_root(lo, hi, eps=sp.Rational(1, 10**18) * max(abs(hi), 1))
-        return math.sqrt(float((lo + hi) / 2))
+    Exact real-root isolation in rational arithmetic (``fractions.Fraction``, no sympy): the
+    Sturm sequence of the square-free part ``G = F / gcd(F, F')`` counts the distinct roots
+    in an interval; bisection isolates them in increasing order and refines each to a
+    relative width of 1e-18; a root is a crossing where ``F`` changes sign across it (odd
+    multiplicity), not where it only touches zero.
+    """
+    G = _quotient(F, _gcd(F, _derivative(F)))
+    if len(G) == 1:
+        return math.inf                                 # no real root at all
+    sturm = _sturm(G)
+    bound = 1 + max(abs(c / G[-1]) for c in G[:-1])   # Cauchy: every root below it
+    lo = Fraction(0)
+    while _count(sturm, lo, bound) > 0:
+        hi = bound
+        while _count(sturm, lo, hi) > 1:                # isolate the next root in (lo, hi]
+            mid = (lo + hi) / 2
+            if _count(sturm, lo, mid) >= 1:
+                hi = mid
+            else:
+                lo = mid
+        a, b = lo, hi                                   # one simple root of G in (a, b]
+        while b - a > Fraction(1, 10**18) * b:
+            mid = (a + b) / 2
+            if _sign(_eval(G, mid)) == 0:
+                a = b = mid
+                break
+            if _sign(_eval(G, mid)) == _sign(_eval(G, a)) and _eval(G, a) != 0:
+                a = mid
+            else:
+                b = mid
+        root = (a + b) / 2
+        width = max(b - a, Fraction(1, 10**30) * max(root, Fraction(1)))
+        if _sign(_eval(F, root - width)) != _sign(_eval(F, root + width)):
+            return math.sqrt(float(root))
+        lo = b                                          # a touching root: look further out
     return math.inf
+
+
+def _eval(p: list[Fraction], x: Fraction) -> Fraction:
+    out = Fraction(0)
+    for c in reversed(p):
+        out = out * x + c
+    return out
+
+
+def _sign(x: Fraction) -> int:
+    return (x > 0) - (x < 0)
+
+
+def _derivative(p: list[Fraction]) -> list[Fraction]:
+    return [k * c for k, c in enumerate(p)][1:] or [Fraction(0)]
+
+
+def _trim(p: list[Fraction]) -> list[Fraction]:
+    while len(p) > 1 and p[-1] == 0:
+        p = p[:-1]
+    return p
+
+
+def _divmod(p: list[Fraction], q: list[Fraction]) -> tuple[list[Fraction], list[Fraction]]:
+    """Polynomial division with remainder (ascending coefficients, ``q`` trimmed, nonzero)."""
+    p = _trim(list(p))
+    if len(p) < len(q):
+        return [Fraction(0)], p
+    out = [Fraction(0)] * (len(p) - len(q) + 1)
+    for k in range(len(out) - 1, -1, -1):
+        c = p[k + len(q) - 1] / q[-1]
+        out[k] = c
+        for j, qc in enumerate(q):
+            p[k + j] -= c * qc
+    return out, _trim(p[: len(q) - 1] or [Fraction(0)])
+
+
+def _quotient(p: list[Fraction], q: list[Fraction]) -> list[Fraction]:
+    return _trim(_divmod(p, _trim(q))[0])
+
+
+def _gcd(p: list[Fraction], q: list[Fraction]) -> list[Fraction]:
+    a, b = _trim(list(p)), _trim(list(q))
+    while not (len(b) == 1 and b[0] == 0):
+        a, b = b, _divmod(a, b)[1]
+    return [c / a[-1] for c in a]
+
+
+def _sturm(p: list[Fraction]) -> list[list[Fraction]]:
+    seq = [_trim(p), _trim(_derivative(p))]
+    while not (len(seq[-1]) == 1 and seq[-1][0] == 0) and len(seq[-1]) > 1:
+        seq.append([-c for c in _divmod(seq[-2], seq[-1])[1]])
+    return [s for s in seq if not (len(s) == 1 and s[0] == 0)]
+
+
+def _changes(sturm: list[list[Fraction]], x: Fraction) -> int:
+    signs = [s for s in (_sign(_eval(p, x)) for p in sturm) if s != 0]
+    return sum(1 for a, b in zip(signs, signs[1:], strict=False) if a != b)
+
+
+def _count(sturm: list[list[Fraction]], lo: Fraction, hi: Fraction) -> int:
+    """Distinct roots of the square-free polynomial in ``(lo, hi]`` (Sturm's theorem)."""
+    return _changes(sturm, lo) - _changes(sturm, hi)
