@@ -29,9 +29,29 @@ damping along springs) are evaluated at the current iterate ``(x^k, (x^k - x_n)/
 right-hand side, so their fixed point is implicit Euler's too; stiff ones slow the
 iteration (a contraction only while their stiffness is small against ``M/h^2 + L``).
 
+**Cost.** Setup, once per system and dt (:func:`global_step`): the matrix, its
+factorisation (CHOLMOD's symbolic analysis and numeric factorisation, counted in
+``n_factor``; SuperLU without cvxopt) and, for Chebyshev, the spectral radius estimate
+below. Per iteration: one compiled pass (local step and right-hand side,
+:mod:`mslab.integrators.local_step`), the other effects' forces when they depend on the
+state (gravity is a constant, evaluated once), one solve with the kept factors.
+
+**Chebyshev acceleration** (``chebyshev=True``; Wang 2015): the plain iterate ``x^`` is
+extrapolated as ``x^{k+1} = omega_{k+1} (x^{k+1}^ - x^{k-1}) + x^{k-1}`` with
+``omega = 1`` for the first ``delay`` iterations, ``omega = 2 / (2 - rho^2)`` at the next and
+``omega_{k+1} = 4 / (4 - rho^2 omega_k)`` after, the Chebyshev semi-iteration for a linear
+fixed-point map of spectral radius ``rho``. It has the plain iteration's fixed point. ``rho``
+(``rho=None``) is estimated once per system and dt by :func:`spectral_radius`: power iteration
+(:data:`POWER_ITERATIONS` steps from a fixed random start) on the map's linearisation at the
+first step's inertial guess ``y``, ``delta -> Q^-1 h^2 [d(J d + f_other)/dx delta]_free``,
+the derivative by a finite difference of the local step; each power step is one counted
+force evaluation and solve. Power iteration approaches ``rho`` from below, the safe side
+(an over-estimate makes Chebyshev diverge).
+
 Reference: T. Liu, A. W. Bargteil, J. F. O'Brien, L. Kavan, "Fast Simulation of
-Mass-Spring Systems", ACM Trans. Graph. 32(6), 209 (2013). Related: projective dynamics
-(Bouaziz et al. 2014).
+Mass-Spring Systems", ACM Trans. Graph. 32(6), 209 (2013). H. Wang, "A Chebyshev
+semi-iterative approach for accelerating projective and position-based dynamics", ACM
+Trans. Graph. 34(6), 246 (2015). Related: projective dynamics (Bouaziz et al. 2014).
 """
 
 from __future__ import annotations
@@ -43,13 +63,15 @@ import numpy as np
 
 from mslab.integrators.base import Integrator
 from mslab.integrators.linear import Factor
-from mslab.integrators.local_step import projections
+from mslab.integrators.local_step import local_rhs, update
 from mslab.state import State
 
 if TYPE_CHECKING:
     from mslab.system import System
 
 _CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+#: power-iteration steps of the spectral radius estimate (Chebyshev acceleration)
+POWER_ITERATIONS = 30
 
 
 class GlobalStep:
@@ -73,6 +95,13 @@ class GlobalStep:
         self.gamma = sum(e.linear_drag() for e in drags)
         #: effects evaluated at the iterate: everything but Hooke springs and linear drag
         self.others = [e for e in system.effects if e not in springs and e not in drags]
+        #: the others' forces that depend on neither x nor v (gravity), summed once
+        self.constant = np.zeros((system.n_particles, system.dim))
+        for e in self.others:
+            f = e.constant_force()
+            if f is not None:
+                self.constant = self.constant + f
+        self.varying = [e for e in self.others if e.constant_force() is None]
         #: springs with a velocity-dependent remainder (damping along the springs)
         self.damped_springs = [e for e in springs if e.velocity_dependent]
         n = system.n_particles
@@ -81,10 +110,72 @@ class GlobalStep:
                              (np.concatenate([self.i, self.j, self.i, self.j]),
                               np.concatenate([self.i, self.j, self.j, self.i]))), shape=(n, n)).tocsr()
         self.free = ~system.pinned
+        self.free_idx = np.flatnonzero(self.free)
         self.pinned = system.pinned.copy()
+        self.rho: float | None = None  # the spectral radius estimate (Chebyshev), on first use
         self.lap_fp = lap[self.free][:, self.pinned]
         Q = sp.diags(system.mass[self.free] + dt * self.gamma) + (dt * dt) * lap[self.free][:, self.free]
         self.factor = Factor(Q.tocsc(), system.counters)
+
+    def other_forces(self, x: np.ndarray, xn: np.ndarray, dt: float) -> np.ndarray:
+        """Return the other forces (all but springs and drag) at the iterate ``(x, (x - x_n)/h)``."""
+        if not (self.varying or self.damped_springs):
+            return self.constant
+        out = self.constant.copy()
+        v = (x - xn) / dt
+        for e in self.varying:
+            out += e.force(x, v)
+        for e in self.damped_springs:  # the damping part of a damped spring
+            out += e.force(x, v) - e.force(x, np.zeros_like(v))
+        return out
+
+    def rhs(self, x: np.ndarray, xn: np.ndarray, base: np.ndarray, dt: float, jd: np.ndarray,
+            out: np.ndarray) -> None:
+        """Local step at ``x``: ``jd = J d + f_other`` and ``out = base + h^2 jd[free]``."""
+        local_rhs(x, self.i, self.j, self.stiffness, self.rest_length, self.other_forces(x, xn, dt),
+                  base, dt * dt, self.free_idx, jd, out)
+
+
+def spectral_radius(g: GlobalStep, system: System, x: np.ndarray, xn: np.ndarray, base: np.ndarray,
+                    dt: float, steps: int = POWER_ITERATIONS) -> float:
+    """Estimate the spectral radius of the local/global map's linearisation at ``x`` (power iteration).
+
+    The map is ``x_free -> Q^-1 (base + h^2 jd(x)[free])``; its derivative applied to
+    ``delta`` (pinned entries zero) is ``Q^-1 h^2 [jd(x + eps delta) - jd(x)]_free / eps``
+    (``eps = 1e-6 (1 + max |x|)``, ``|delta| = 1``). ``steps`` steps from a fixed random start;
+    each counts one force evaluation and one solve. Returns the last norm ratio.
+    """
+    c = system.counters
+    free = g.free_idx
+    jd0, jd1 = np.empty_like(x), np.empty_like(x)
+    out = np.empty(base.shape, order="F")
+    zero = np.zeros_like(base)
+    g.rhs(x, xn, zero, dt, jd0, out)
+    c.n_force += 1
+    eps = 1e-6 * (1.0 + float(np.max(np.abs(x))))
+    delta = np.random.default_rng(0).standard_normal(base.shape)
+    rho = 0.0
+    for _ in range(steps):
+        delta /= np.linalg.norm(delta)
+        moved = x.copy()
+        moved[free] += eps * delta
+        g.rhs(moved, xn, zero, dt, jd1, out)
+        image = g.factor.solve(np.asfortranarray((dt * dt / eps) * (jd1[free] - jd0[free])))
+        c.n_force += 1
+        c.n_solve += 1
+        rho = float(np.linalg.norm(image))
+        if not np.isfinite(rho) or rho == 0.0:
+            break
+        delta = image
+    return rho
+
+
+def chebyshev_weights(rho: float, iterations: int, delay: int) -> np.ndarray:
+    """``omega_k`` for ``k = 1 .. iterations`` (Wang 2015, eq. 12): 1 up to ``delay``, then Chebyshev's."""
+    omega = np.ones(iterations)
+    for k in range(delay, iterations):
+        omega[k] = 2.0 / (2.0 - rho * rho) if k == delay else 4.0 / (4.0 - rho * rho * omega[k - 1])
+    return omega
 
 
 def global_step(system: System, dt: float) -> GlobalStep:
@@ -109,10 +200,19 @@ class LocalGlobal(Integrator):
         Stop earlier once ``max |x^{k+1} - x^k| <= tol (1 + max |x_n|)``; None: always
         ``iterations`` sweeps.
     doc : str, optional
+    chebyshev : bool, optional
+        Chebyshev acceleration (Wang 2015; module docstring): same fixed point, faster
+        approach to it.
+    rho : float, optional
+        Chebyshev's spectral radius; None: estimated once per system and dt
+        (:func:`spectral_radius`, counted).
+    delay : int, optional
+        Plain iterations before the Chebyshev extrapolation starts (Wang's ``S``).
 
     Cost per iteration: one force evaluation (the compiled local step for the springs, the
     other effects directly), one solve with the kept factors (``n_force``, ``n_solve``,
-    ``n_iter`` counted; ``n_factor`` once per system and dt).
+    ``n_iter`` counted; ``n_factor`` once per system and dt, with the spectral radius
+    estimate's ``POWER_ITERATIONS`` force evaluations and solves for Chebyshev).
     """
 
     family = "local_global"
@@ -126,12 +226,20 @@ class LocalGlobal(Integrator):
     n_stages = 1
 
     def __init__(self, name: str = "local_global", iterations: int = 10, tol: float | None = None,
-                 doc: str | None = None):
+                 doc: str | None = None, chebyshev: bool = False, rho: float | None = None,
+                 delay: int = 1):
         if iterations < 1:
             raise ValueError(f"iterations must be >= 1, got {iterations}")
+        if rho is not None and not 0.0 <= rho < 1.0:
+            raise ValueError(f"rho must be in [0, 1), got {rho}")
+        if delay < 1:
+            raise ValueError(f"delay must be >= 1, got {delay}")
         self.name = name
         self.iterations = int(iterations)
         self.tol = tol
+        self.chebyshev = bool(chebyshev)
+        self.rho = rho
+        self.delay = int(delay)
         self.coefficients = {"iterations": self.iterations}
         if doc:
             self.__doc__ = doc
@@ -161,6 +269,20 @@ class LocalGlobal(Integrator):
         return out
 
     # -- stepping ---------------------------------------------------------------------------------
+    def weights(self, g: GlobalStep, system: System, y: np.ndarray, xn: np.ndarray, base: np.ndarray,
+                dt: float) -> np.ndarray:
+        """Return the extrapolation weights ``omega_k`` of the iterations (all 1 without Chebyshev)."""
+        if not self.chebyshev:
+            return np.ones(self.iterations)
+        rho = self.rho
+        if rho is None:
+            if g.rho is None:  # setup: once per system and dt, at the first step's guess
+                g.rho = spectral_radius(g, system, y, xn, base, dt)
+            rho = g.rho
+        if not 0.0 <= rho < 1.0:  # the plain iteration does not contract there: no extrapolation
+            return np.ones(self.iterations)
+        return chebyshev_weights(rho, self.iterations, self.delay)
+
     def step(self, system: System, state: State, dt: float) -> State:
         """One step: ``iterations`` local/global sweeps from the inertial guess ``y``."""
         if system.pinned.all():  # nothing free: no global matrix to factor, every particle stays put
@@ -174,26 +296,20 @@ class LocalGlobal(Integrator):
         base = system.mass[free, None] * y[free] + (dt * g.gamma) * xn[free]
         if g.lap_fp.nnz:
             base = base - (dt * dt) * (g.lap_fp @ y[g.pinned])
+        omega = self.weights(g, system, y, xn, base, dt)
         x = y.copy()
+        prev = y.copy()  # the iterate before the last (Chebyshev)
         scale = 1.0 + float(np.max(np.abs(xn))) if xn.size else 1.0
         jd = np.empty_like(x)
+        rhs = np.empty(base.shape, order="F")  # the solvers read columns
         done = 0
         while done < self.iterations:
-            done += 1
             c.n_force += 1
-            jd[:] = 0.0
-            projections(x, g.i, g.j, g.stiffness, g.rest_length, jd)
-            if g.others or g.damped_springs:
-                v = (x - xn) / dt
-                for e in g.others:
-                    jd += e.force(x, v)
-                for e in g.damped_springs:  # the damping part of a damped spring
-                    jd += e.force(x, v) - e.force(x, np.zeros_like(v))
-            rhs = np.asfortranarray(base + (dt * dt) * jd[free])  # SuperLU solves columns
+            g.rhs(x, xn, base, dt, jd, rhs)
             new = g.factor.solve(rhs)
             c.n_solve += 1
-            change = float(np.max(np.abs(new - x[free]))) if new.size else 0.0
-            x[free] = new
+            change = update(x, new, prev, g.free_idx, omega[done], self.chebyshev)
+            done += 1
             if not np.isfinite(change):
                 break
             if self.tol is not None and change <= self.tol * scale:
