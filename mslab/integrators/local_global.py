@@ -111,6 +111,9 @@ class GlobalStep:
                               np.concatenate([self.i, self.j, self.j, self.i]))), shape=(n, n)).tocsr()
         self.free = ~system.pinned
         self.free_idx = np.flatnonzero(self.free)
+        # unsigned indices for the compiled pass: numba drops its negative-index test (the
+        # spring kernel measured 0.81x with them, benchmarks/RESULTS.md)
+        self.i_u, self.j_u = self.i.astype(np.uint32), self.j.astype(np.uint32)
         self.pinned = system.pinned.copy()
         self.rho: float | None = None  # the spectral radius estimate (Chebyshev), on first use
         self.lap_fp = lap[self.free][:, self.pinned]
@@ -132,7 +135,7 @@ class GlobalStep:
     def rhs(self, x: np.ndarray, xn: np.ndarray, base: np.ndarray, dt: float, jd: np.ndarray,
             out: np.ndarray) -> None:
         """Local step at ``x``: ``jd = J d + f_other`` and ``out = base + h^2 jd[free]``."""
-        local_rhs(x, self.i, self.j, self.stiffness, self.rest_length, self.other_forces(x, xn, dt),
+        local_rhs(x, self.i_u, self.j_u, self.stiffness, self.rest_length, self.other_forces(x, xn, dt),
                   base, dt * dt, self.free_idx, jd, out)
 
 

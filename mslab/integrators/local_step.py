@@ -54,20 +54,37 @@ def local_rhs_py(x: np.ndarray, i: np.ndarray, j: np.ndarray, stiffness: np.ndar
     for a in range(n):
         for c in range(dim):
             jd[a, c] = 0.0
-    for q in range(i.shape[0]):  # the loop of projections_py (numba cannot call it uncompiled)
-        a = i[q]
-        b = j[q]
-        length2 = 0.0
-        for c in range(dim):
-            diff = x[a, c] - x[b, c]
-            length2 += diff * diff
-        length = np.sqrt(length2)
-        if length > 0.0:
-            scale = stiffness[q] * rest_length[q] / length
+    if dim == 3:  # unrolled: the common case, about twice as fast (the loop below is the same)
+        for q in range(i.shape[0]):
+            a = i[q]
+            b = j[q]
+            d0 = x[a, 0] - x[b, 0]
+            d1 = x[a, 1] - x[b, 1]
+            d2 = x[a, 2] - x[b, 2]
+            length = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            if length > 0.0:
+                scale = stiffness[q] * rest_length[q] / length
+                jd[a, 0] += scale * d0
+                jd[a, 1] += scale * d1
+                jd[a, 2] += scale * d2
+                jd[b, 0] -= scale * d0
+                jd[b, 1] -= scale * d1
+                jd[b, 2] -= scale * d2
+    else:  # the loop of projections_py (numba cannot call it uncompiled)
+        for q in range(i.shape[0]):
+            a = i[q]
+            b = j[q]
+            length2 = 0.0
             for c in range(dim):
-                p = scale * (x[a, c] - x[b, c])
-                jd[a, c] += p
-                jd[b, c] -= p
+                diff = x[a, c] - x[b, c]
+                length2 += diff * diff
+            length = np.sqrt(length2)
+            if length > 0.0:
+                scale = stiffness[q] * rest_length[q] / length
+                for c in range(dim):
+                    p = scale * (x[a, c] - x[b, c])
+                    jd[a, c] += p
+                    jd[b, c] -= p
     for a in range(n):
         for c in range(dim):
             jd[a, c] += extra[a, c]
