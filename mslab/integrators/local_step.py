@@ -94,12 +94,13 @@ def local_rhs_py(x: np.ndarray, i: np.ndarray, j: np.ndarray, stiffness: np.ndar
 
 
 def update_py(x: np.ndarray, new: np.ndarray, prev: np.ndarray, free_idx: np.ndarray,
-              omega: float, chebyshev: bool) -> float:
+              omega: float, relax: float, chebyshev: bool) -> float:
     """Store the global step's solution ``new`` (n_free, dim) in ``x``; return ``max |change|``.
 
-    Plain (``chebyshev`` False): ``x_free = new``, ``prev`` untouched. Chebyshev:
-    ``x_free <- omega (new - prev_free) + prev_free`` (``new`` itself when ``omega == 1``) and
-    ``prev_free <-`` the old ``x_free``. NaN when a value is not finite.
+    Plain (``chebyshev`` False): ``x_free = new``, ``prev`` untouched. Chebyshev (Wang 2015,
+    eq. 11): ``x_free <- omega (relax (new - x_free) + x_free - prev_free) + prev_free``
+    (each factor skipped when it is 1) and ``prev_free <-`` the old ``x_free``. NaN when a
+    value is not finite.
     """
     change = 0.0
     finite = True
@@ -110,6 +111,8 @@ def update_py(x: np.ndarray, new: np.ndarray, prev: np.ndarray, free_idx: np.nda
             old = x[a, c]
             value = new[r, c]
             if chebyshev:
+                if relax != 1.0:
+                    value = relax * (value - old) + old
                 if omega != 1.0:
                     value = omega * (value - prev[a, c]) + prev[a, c]
                 prev[a, c] = old
@@ -148,6 +151,6 @@ def local_rhs(*args) -> None:
 
 
 def update(x: np.ndarray, new: np.ndarray, prev: np.ndarray, free_idx: np.ndarray, omega: float,
-           chebyshev: bool) -> float:
+           relax: float, chebyshev: bool) -> float:
     """Run :func:`update_py` compiled (same arguments and result)."""
-    return compiled(update_py)(x, new, prev, free_idx, float(omega), bool(chebyshev))
+    return compiled(update_py)(x, new, prev, free_idx, float(omega), float(relax), bool(chebyshev))
