@@ -52,9 +52,10 @@ map's spectrum is one-sided, in ``[0, rho]``: the local step's derivative ``k L/
 is positive semidefinite for any spring length ``l``, so ``Q^-1 h^2 J'`` is similar to a
 positive semidefinite matrix (with springs, linear drag and constant forces only; other
 effects may break it). Relaxing by ``relax = 2 / (2 - rho)`` maps ``[0, rho]`` onto ``[-r, r]``,
-``r = rho / (2 - rho)``, a smaller radius: on the 40 x 40 cloth at h = 1/30, 10 iterations
-land 0.077 of the step away from implicit Euler's result against 0.15 with Wang's form and
-0.24 plain (``benchmarks/fast_mass_spring.py``).
+``r = rho / (2 - rho)``, a smaller radius: on the 81 x 81 cloth at h = 1/30, 10 iterations
+land 0.086 of the step away from implicit Euler's result against 0.16 with Wang's form and
+0.25 plain, 40 iterations 0.0065 / 0.013 / 0.13, at the plain iterations' cost per
+iteration (``benchmarks/fast_mass_spring.py``, ``benchmarks/RESULTS.md``).
 
 Reference: T. Liu, A. W. Bargteil, J. F. O'Brien, L. Kavan, "Fast Simulation of
 Mass-Spring Systems", ACM Trans. Graph. 32(6), 209 (2013). H. Wang, "A Chebyshev
