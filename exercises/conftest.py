@@ -1,4 +1,4 @@
-"""Local runs (``pytest exercises/NN_topic``): the ``student`` fixture is your module.
+"""Local runs (``pytest NN_topic`` from this folder): the ``student`` fixture is your module.
 
 Each test file names the module it tests in ``MODULE``; the fixture imports that file
 from the test's folder, fresh for every test. (While grading, the grader supplies its

@@ -7,9 +7,12 @@ Usage (from the repository root)::
     .venv/bin/python lessons/run_all.py lessons/01_euler_taylor.ipynb
 
 Each notebook runs top to bottom in a fresh ``python3`` kernel with ``lessons/`` as the
-working directory; cells tagged ``raises-exception`` may raise. Widget state is not stored
-(its ids are random; a live kernel rebuilds it), so re-runs give clean diffs. Afterwards check them
-with nbval (twice, to be sure the outputs are reproducible)::
+working directory; cells tagged ``raises-exception`` may raise. The notebook's kernelspec is
+written as that kernel's own (name, display name, language) and its ``language_info`` as the
+kernel reports it: JupyterLab rewrites either when it differs from the kernel it starts, and
+a lesson would then open already modified (``tests/test_lab.py`` checks it in a browser).
+Widget state is not stored (its ids are random; a live kernel rebuilds it), so re-runs give
+clean diffs. Afterwards check them with nbval (twice, to be sure the outputs are reproducible)::
 
     .venv/bin/python -m pytest -q -p no:randomly --nbval --nbval-current-env \
         --nbval-sanitize-with lessons/sanitize.cfg lessons/
@@ -23,9 +26,17 @@ import time
 from pathlib import Path
 
 import nbformat
+from jupyter_client.kernelspec import KernelSpecManager
 from nbclient import NotebookClient
 
 HERE = Path(__file__).resolve().parent
+KERNEL = "python3"
+
+
+def kernelspec_metadata(name: str = KERNEL) -> dict:
+    """The ``kernelspec`` block JupyterLab writes for kernel ``name`` (stored as is: opens unmodified)."""
+    spec = KernelSpecManager().get_kernel_spec(name)
+    return {"name": name, "display_name": spec.display_name, "language": spec.language}
 
 
 def coalesce_streams(outputs: list) -> list:
@@ -43,11 +54,11 @@ def coalesce_streams(outputs: list) -> list:
 def execute(path: Path, timeout: int = 300) -> float:
     """Run one notebook in place; returns the seconds it took."""
     nb = nbformat.read(path, as_version=4)
-    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
+    nb.metadata["kernelspec"] = kernelspec_metadata()
     start = time.perf_counter()
     for cell in nb.cells:                       # no timestamps: re-runs give clean diffs
         cell.metadata.pop("execution", None)
-    NotebookClient(nb, timeout=timeout, kernel_name="python3", record_timing=False,
+    NotebookClient(nb, timeout=timeout, kernel_name=KERNEL, record_timing=False,
                    resources={"metadata": {"path": str(path.parent)}}).execute()
     elapsed = time.perf_counter() - start
     for cell in nb.cells:

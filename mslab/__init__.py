@@ -13,6 +13,7 @@ from mslab.integrators import (
     get_method,
     methods,
 )
+from mslab.integrators.base import set_order_check
 from mslab.scenes import Scene, SceneBuilder, Settings, load_scene, scene_names
 from mslab.simulate import Simulation, SimulationInterrupted, simulate
 from mslab.state import State
@@ -20,6 +21,16 @@ from mslab.system import System
 from mslab.trajectory import Energy, Stats, Trajectory
 
 __version__ = "0.1.0"
+
+
+def _check_declared_order(method: Integrator) -> None:
+    """Check a declared order for the registry (mslab.derive sits above it: wired here, loaded on use)."""
+    from mslab.derive.declared import check_declared_order
+
+    check_declared_order(method)
+
+
+set_order_check(_check_declared_order)
 
 
 def __getattr__(name: str):

@@ -9,7 +9,9 @@ temporary file, so a course server can serve it.
 
 from __future__ import annotations
 
+import errno
 import os
+import shutil
 import stat
 import tempfile
 from collections.abc import Callable
@@ -54,8 +56,42 @@ def atomic_write(path: str | Path, write: Callable[[str], None], suffix: str | N
         write(tmp)
         os.chmod(tmp, mode)  # mkstemp made it 0600; the finished file gets the umask's mode
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as err:
         if os.path.exists(tmp):
             os.unlink(tmp)
+        if isinstance(err, OSError) and err.errno == errno.ENOSPC:  # name the file, not only [Errno 28]
+            raise OSError(err.errno, f"{path}: no space left on the device while writing it") from None
         raise
     return path
+
+
+def _mb(n_bytes: float) -> str:
+    return f"{n_bytes / 2**20:.3g} MB"
+
+
+def output_problem(folder: str | Path, need_bytes: int = 0) -> str | None:
+    """Say why outputs cannot be written into ``folder`` (None: they can), before any is computed.
+
+    ``folder`` may not exist yet (it is not created here): it must not be a file, its nearest
+    existing parent must be a folder this process can create files in (tested by creating and
+    removing an empty file: read-only mounts and permissions alike), and that file system must
+    have ``need_bytes`` free.
+    """
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        return f"{folder} exists and is not a folder"
+    base = folder.absolute()
+    while not base.exists() and base != base.parent:
+        base = base.parent
+    if not base.is_dir():
+        return f"{base} is a file, so the folder {folder} cannot be made"
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".mslab-probe-", dir=base)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as err:
+        return f"cannot write in {base} ({err.strerror or err})"
+    free = shutil.disk_usage(base).free
+    if free < need_bytes:
+        return f"only {_mb(free)} free on the file system of {base}; the outputs need about {_mb(need_bytes)}"
+    return None

@@ -18,7 +18,7 @@ from mslab.steps import save_indices
 from mslab.trajectory import Energy
 
 if TYPE_CHECKING:
-    from mslab.scenes.builder import Scene
+    from mslab.scene import Scene
     from mslab.system import System
 
 #: slots of a session of unknown length allocated at first (then doubled as needed)

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from mslab.integrators.base import Integrator
 from mslab.ledger import initial_energy_scale, xs_bytes
-from mslab.scenes.builder import Scene
+from mslab.scene import Scene
 from mslab.simulation import Simulation, SimulationInterrupted
 from mslab.steps import step_count
 from mslab.trajectory import Trajectory

@@ -38,7 +38,7 @@ from mslab.stopping import LedgerCheck, hint, position_limit
 from mslab.trajectory import Energy, Stats, Trajectory
 
 if TYPE_CHECKING:
-    from mslab.scenes.builder import Scene
+    from mslab.scene import Scene
 
 #: steps a session of unknown length is expected to take, for ``backend="auto"``: about three
 #: seconds of frames of 16 substeps at 60 frames per second

@@ -26,7 +26,7 @@ from mslab.errors import StabilityWarning
 
 if TYPE_CHECKING:
     from mslab.integrators.base import Integrator
-    from mslab.scenes.builder import Scene
+    from mslab.scene import Scene
 
 #: force evaluations between two ledger checks: a check (K and U in numpy, about one numpy
 #: force evaluation) then costs a few per cent of the compiled steps between checks

@@ -36,14 +36,16 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("plots/", ("plots/",)),
     ("stability/, derive/, precision/, budget", ("stability/", "derive/", "precision/", "budget.py")),
     ("scenes/ (builder, loader, generators)", ("scenes/",)),
-    ("simulate (Simulation, simulate, ledger, stopping)", ("simulate.py", "trajectory.py")),
+    ("simulate (Simulation, simulate, ledger, stopping)",
+     ("simulate.py", "simulation.py", "stepping.py", "steps.py", "stopping.py", "ledger.py",
+      "trajectory.py")),
     ("fast/", ("fast/",)),
     ("integrators/ (families, methods, newton)", ("integrators/",)),
     ("Scene, Settings, schema", ("scene.py",)),
     ("system", ("system.py",)),
     ("effects/", ("effects/",)),
     ("errors, state, files, progress, threads, one jit helper",
-     ("errors.py", "state.py", "files.py", "progress.py", "threads.py", "fast/jit.py")),
+     ("errors.py", "state.py", "files.py", "progress.py", "threads.py", "claims.py", "fast/jit.py")),
 ]
 GRADING = "grading/"
 #: files of grading/ that talk to the library (the problems and their checks)
@@ -51,15 +53,10 @@ GRADING_LIBRARY_FILES = ("grading/problems.py", "grading/checks.py")
 
 #: (importing file, imported file): upward imports in files owned elsewhere, to be removed
 KNOWN_UPWARD: dict[tuple[str, str], str] = {
-    # simulate.py is being split by another change (issue 24, item 1); then these go
-    ("simulate.py", "scenes/builder.py"):
-        "simulate takes Scene from mslab.scenes.builder; the plain data is mslab/scene.py now: "
-        "import it from there",
-    ("simulate.py", "stability/__init__.py"):
-        "simulate asks the analysis for the predicted stable dt (its StabilityWarning and the "
+    ("stopping.py", "stability/__init__.py"):
+        "the run's pre-check asks the analysis for the predicted stable dt (its StabilityWarning and the "
         "InstabilityError's message): pass the prediction in from above, or move the step-limit "
         "check to a caller (the command line, Simulation's constructor in a higher layer)",
-    ("simulate.py", "scenes/__init__.py"): "the package of scenes/builder.py, as above",
     # the one jit helper (a leaf) is mslab/fast/jit.py, but importing it runs fast/__init__.py,
     # which imports the compiled loops, the integrators and the effects: a circle
     ("effects/springs.py", "fast/__init__.py"):
@@ -273,8 +270,6 @@ EFFECT_NAMES = ("springs", "gravity", "damping", "anchors", "wind", "plane", "sp
 
 #: files owned elsewhere that still pick an effect by class or name
 KNOWN_PICKS: dict[str, str] = {
-    "simulate.py": "isinstance(e, Gravity) for the energy scale: use e.constant_force() "
-                   "(simulate.py is being split by another change)",
     "plots/scene.py": "draws the colliders it knows by name (plane, sphere; reads normal/offset, "
                       "center/radius): needs a drawing capability on may_touch effects (plots/ owner)",
     "commands/run.py": "selects the colliders to draw by name for plots/scene.py (as above)",

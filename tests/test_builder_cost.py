@@ -102,3 +102,27 @@ def test_builder_call_cost_does_not_grow_with_the_scene(name):
     # 16 times the particles and 16 times the springs: an O(1) call does the same work
     assert large[0] <= small[0] + N_CALLS // 20, (name, small, large)
     assert large[1] <= small[1] + 256, (name, small, large)
+
+
+def test_add_spring_loop_builds_the_scene_of_add_springs():
+    """The O(1) path of ``add_spring`` records what ``add_springs(pairs)`` records, bitwise."""
+    side, rng = 7, np.random.default_rng(3)
+    x = rng.normal(size=(side * side, 3))
+    one, many = mslab.SceneBuilder(dim=3), mslab.SceneBuilder(dim=3)
+    for p in x:
+        one.add_particle(p, mass=2.0)
+    many.add_particles(x, mass=2.0)
+    for kind, k in (("structural", 500.0), ("shear", 50.0), ("bend", 5.0)):
+        pairs = grid_springs((side, side), kind)
+        for i, j in pairs.tolist():
+            one.add_spring(i, j, stiffness=k, kind=kind, damping=0.5)
+        many.add_springs(pairs, stiffness=k, kind=kind, damping=0.5)
+    a, b = one.build(), many.build()
+    sa, sb = a.springs(), b.springs()
+    for name in ("springs", "stiffness", "rest_length", "damping", "kind"):
+        np.testing.assert_array_equal(getattr(sa, name), getattr(sb, name))
+    np.testing.assert_array_equal(a.state0.x, b.state0.x)
+    # a duplicate after the fast path is still named with both springs
+    named = r"spring \d+ \(\[1, 0\]\) joins the same two particles as spring 0"
+    with pytest.raises(mslab.SceneError, match=named):
+        one.add_spring(1, 0, stiffness=1.0)

@@ -97,3 +97,50 @@ def test_command_line_sees_the_new_methods(examples, capsys):
     assert main(["run", "pendulum", "--method", "pefrl", "--t-end", "0.5", "--json"]) == 0
     run = json.loads(capsys.readouterr().out)
     assert "pefrl" in json.dumps(run) and run["stats"]["steps"] > 0
+
+
+# -- the page itself: its files are clean code, and it names what the code accepts ------------------
+def _saved_files() -> list[tuple[str, str]]:
+    """``(path, code)`` of every "Save as `mslab/...py`" block of the page."""
+    text = (ROOT / "docs" / "extending.md").read_text()
+    found = re.findall(r"Save\s+(?:this\s+)?as\s+`(mslab/[\w/]+\.py)`.*?```python\n(.*?)```", text, re.S)
+    assert [p for p, _ in found] == ["mslab/integrators/ssprk3.py", "mslab/integrators/trapezoidal.py",
+                                     "mslab/integrators/pefrl.py", "mslab/effects/loads.py"]
+    return found
+
+
+@pytest.mark.parametrize("path", [p for p, _ in _saved_files()])
+def test_each_example_file_is_ruff_clean_where_it_is_saved(path):
+    import subprocess
+
+    pytest.importorskip("ruff")
+    code = dict(_saved_files())[path]
+    command = [sys.executable, "-m", "ruff", "check", "--no-cache", "--output-format", "concise",
+               "--stdin-filename", path, "-"]
+    done = subprocess.run(command, input=code, capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert done.returncode == 0, done.stdout + done.stderr
+
+
+def test_the_page_names_what_the_code_accepts():
+    import dataclasses
+
+    from mslab.effects.base import BuildContext
+    from mslab.effects.schema import Key
+
+    text = (ROOT / "docs" / "extending.md").read_text()
+    with pytest.raises(ValueError) as info:
+        mslab.ImplicitRK([[1]], [1], solver="nope")
+    options = re.findall(r"'(\w+)'", str(info.value).split(", got")[0])
+    assert options == ["newton", "fixed_point", "linearised"]
+    for option in options:
+        assert f'`"{option}"`' in text
+    table = text[text.index("| field | meaning |"):]
+    table = table[:table.index("\n\n")]
+    for field in dataclasses.fields(Key):
+        assert f"`{field.name}`" in table, field.name
+    context = [f.name for f in dataclasses.fields(BuildContext)] + ["n_particles"]
+    for attribute in context:
+        assert f"`ctx.{attribute}`" in text, attribute
+    for method in ("force_and_power", "kernel_items", "kernel_params", "compiled_jacobians"):
+        assert f"`{method}(" in text, method
+    assert "leading zero drift" in text and "make docs" in text

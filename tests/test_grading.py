@@ -66,9 +66,9 @@ def released(tmp_path_factory) -> Path:
     return dest
 
 
-def test_eight_exercises_each_with_text_source_and_tests():
+def test_twelve_exercises_each_with_text_source_and_tests():
     exercises = find_exercises(SOURCE)
-    assert len(exercises) == 8
+    assert len(exercises) == 12
     for ex in exercises:
         assert (ex.folder / "README.md").is_file(), ex.name
         assert set(ex.tests) == {"test_public.py", "test_hidden.py"}, ex.name
@@ -176,7 +176,7 @@ def test_gradebook_csv(graded):
     results, csv_path = graded
     lines = csv_path.read_text().splitlines()
     header = lines[0].split(",")
-    assert header[:3] == ["student", "total", "max"] and len(header) == 3 + 8
+    assert header[:3] == ["student", "total", "max"] and len(header) == 3 + len(find_exercises(SOURCE))
     rows = {line.split(",")[0]: line.split(",") for line in lines[1:]}
     assert rows["reference"][1] == rows["reference"][2] == f"{results['reference']['max']:g}"
     assert rows["untouched"][1] == "0"

@@ -17,6 +17,8 @@ from mslab.grading import find_exercises, grade, release
 
 SOURCE = Path(__file__).resolve().parents[1] / "exercises"
 
+#: the flat grid's coordinates (the "identity" answer of the cloth deformations)
+_FLAT = "np.arange(n_rows * n_cols) % n_cols * spacing, np.arange(n_rows * n_cols) // n_cols * spacing"
 #: what each function returns in the "zeros" and the "identity" answer
 TRIVIAL = {
     "spring_forces": ("np.zeros_like(x, dtype=float)", "np.array(x, dtype=float)"),
@@ -39,6 +41,24 @@ TRIVIAL = {
     "real_stability_interval": ("0.0", "-2.0"),
     "penetration_depth": ("np.zeros(len(x))", "np.array(x[:, -1], dtype=float)"),
     "plane_contact_force": ("np.zeros_like(x, dtype=float)", "np.array(v, dtype=float)"),
+    "kinetic_energy": ("0.0", "float(np.sum(v))"),
+    "potential_energy": ("0.0", "float(np.sum(x))"),
+    "ledger": ("(np.zeros(len(xs)), np.zeros(len(xs)), np.zeros(len(xs)))",
+               "(np.ones(len(xs)), np.ones(len(xs)), np.ones(len(xs)))"),
+    "band_and_drift": ("(0.0, 0.0)", "(float(error[0]), float(t[0]))"),
+    "verdict": ("'bounded'", "'drifting'"),
+    "fit_error_model": ("(0.0, 0.0)", "(1.0, 1.0)"),
+    "step_for_target": ("0.0", "float(target)"),
+    "predicted_cost": ("(0, 0)", "(1, 1)"),
+    "cheapest": ("(next(iter(runs)), 0, 0)", "(list(runs)[-1], 1, 1)"),
+    "grid_springs": ("np.zeros((0, 2), dtype=int)",
+                     "np.stack([np.arange(n_rows * n_cols - 1), np.arange(1, n_rows * n_cols)], axis=1)"),
+    "sheared": ("np.zeros((n_rows * n_cols, 2))", f"np.stack([{_FLAT}], axis=1)"),
+    "folded": ("np.zeros((n_rows * n_cols, 3))", f"np.stack([{_FLAT}, np.zeros(n_rows * n_cols)], axis=1)"),
+    "order3_conditions": ("np.zeros(4)", "np.ones(4)"),
+    "kutta_family": ("(np.zeros((3, 3)), np.zeros(3))", "(np.eye(3), np.ones(3) / 3)"),
+    "my_method": ("(np.zeros((3, 3)), np.zeros(3))", "(np.eye(3), np.ones(3) / 3)"),
+    "rk3_step": ("(np.zeros_like(x), np.zeros_like(v))", "(x, v)"),
 }
 STRATEGIES = ("zeros", "identity", "raises")
 

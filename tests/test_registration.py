@@ -46,7 +46,7 @@ GOOD = {
 #: wrong method files -> what their one line must say
 BAD = {
     "clash": ('x = 1\nregister(ExplicitRK([[0]], [1], name="rk4", order=1))\n',
-              [":6: method name 'rk4' is already registered by ", "explicit_tableaux.py"]),
+              [":6: method name 'rk4' of ", "clash.py is already registered by ", "explicit_tableaux.py"]),
     "ralston_order4": (f'register(ExplicitRK({RALSTON}, name="ralston_order4", order=4))\n',
                        [":5: method 'ralston_order4' declares order 4, but its coefficients have order 3"]),
     "lobatto_order3": (f'register(ImplicitRK({LOBATTO}, name="lobatto_order3", order=3))\n',
@@ -133,8 +133,10 @@ def test_wrong_files_leave_the_registry_as_it_was(loaded):
 @pytest.mark.parametrize("name", ["rk38", "ralston3", "ruth3", "lobatto_iiic2"])
 def test_registry_wide_tests_accept_correct_methods(loaded, name):
     from tests import test_integrators
+    from tests.hard_cases import test_ledger_order
 
     test_integrators.test_ledger_total_conserved_to_method_order_with_damping(name)
+    test_ledger_order.test_damped_oscillator_ledger_order(name)
     for gamma in (0.0, 0.4):
         test_integrators.test_convergence_order_on_oscillator(name, gamma)
     test_integrators.test_step_mutates_nothing_and_pinned_never_move(name)
@@ -150,6 +152,10 @@ def test_registry_wide_tests_reject_a_wrong_declared_order():
     assert abs(slope - 3) < 0.2 and slope < wrong.order - 0.2
     with pytest.raises(AssertionError):
         test_integrators.check_ledger_order(wrong)
+    from tests.hard_cases import test_ledger_order
+
+    with pytest.raises(AssertionError):
+        test_ledger_order.test_damped_oscillator_ledger_order(wrong)
     test_integrators.check_ledger_order(mslab.ExplicitRK(  # the same tableau declared 3: accepted
         [[0, 0, 0], [Fr(1, 2), 0, 0], [0, Fr(3, 4), 0]], [Fr(2, 9), Fr(1, 3), Fr(4, 9)], name="r3", order=3))
 
@@ -175,10 +181,10 @@ def test_same_file_registers_again_but_no_other_file_replaces(tmp_path):
         (tmp_path / "other_again.py").write_text(HEADER + again)
         package.__path__.append(str(tmp_path))
         package.discover()
-        with pytest.warns(errors.BrokenFileWarning, match="other_again.py:5: method name 'again'"):
+        with pytest.warns(errors.BrokenFileWarning, match="other_again.py:5: method name 'again' of "):
             assert mslab.get_method("again") is second
-        assert any("other_again.py:5: method name 'again' is already registered by " + __file__ in line
-                   for line in errors.broken_files())
+        assert any(f"other_again.py:5: method name 'again' of {tmp_path / 'other_again.py'} is already "
+                   f"registered by {__file__}" in line for line in errors.broken_files())
     finally:
         _cleanup(tmp_path, ["again", "other_again"])
 
@@ -208,6 +214,7 @@ def test_broken_effect_file_is_one_line_and_the_other_effects_work(tmp_path):
     finally:
         effects_package.__path__[:] = [p for p in effects_package.__path__ if p != str(tmp_path)]
         sys.modules.pop("mslab.effects.broken_effect", None)
+        effect_registry._imported.discard("broken_effect")
         for line in list(errors._BROKEN):
             if line.startswith(str(tmp_path)):
                 del errors._BROKEN[line]
@@ -244,3 +251,52 @@ def test_import_and_built_in_lookups_stay_cheap():
             "print(sorted(m for m in ('sympy', 'scipy', 'numba') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert out.stdout.strip() == "[]", out.stderr
+
+
+def test_an_effect_file_may_not_replace_a_built_in_effect(tmp_path):
+    (tmp_path / "my_springs.py").write_text(textwrap.dedent("""\
+        from mslab.effects.base import Effect
+        from mslab.effects.registry import register
+
+
+        @register
+        class MySprings(Effect):
+            name = "springs"
+        """))
+    effects_package.__path__.append(str(tmp_path))
+    try:
+        effect_registry.discover()
+        lines = [ln for ln in errors.broken_files() if ln.startswith(str(tmp_path))]
+        head = (f"{tmp_path / 'my_springs.py'}:5: effect name 'springs' of {tmp_path / 'my_springs.py'} is "
+                "already registered by ")
+        assert len(lines) == 1 and lines[0].startswith(head)
+        assert "mslab/effects/springs.py" in lines[0]
+        with pytest.warns(errors.BrokenFileWarning):
+            assert effect_registry.get_effect("springs").__module__ == "mslab.effects.springs"
+    finally:
+        effects_package.__path__[:] = [p for p in effects_package.__path__ if p != str(tmp_path)]
+        sys.modules.pop("mslab.effects.my_springs", None)
+        effect_registry._imported.discard("my_springs")
+        for line in list(errors._BROKEN):
+            if line.startswith(str(tmp_path)):
+                del errors._BROKEN[line]
+
+
+def test_files_imported_before_the_order_check_is_installed_are_checked_then(tmp_path):
+    """``import mslab`` imports the method files first and installs mslab.derive's check after."""
+    (tmp_path / "early.py").write_text(HEADER + (
+        'register(ExplicitRK([[0]], [1], name="early_ok", order=1))\n'
+        'register(ExplicitRK([[0, 0], [1, 0]], [Fr(1, 2), Fr(1, 2)], name="early_bad", order=3))\n'))
+    check = base._order_check
+    base._order_check = None
+    package.__path__.append(str(tmp_path))
+    try:
+        assert package.discover() == ["early"]
+        assert {"early_ok", "early_bad"} <= set(base._REGISTRY)  # not checked yet
+        base.set_order_check(check)
+        assert not {"early_ok", "early_bad"} & set(base._REGISTRY)  # the whole file is taken out
+        assert f"{tmp_path / 'early.py'}:6: method 'early_bad' declares order 3, but its coefficients have " \
+               "order 2 (mslab.derive.order)" in errors.broken_files()
+    finally:
+        base._order_check = check
+        _cleanup(tmp_path, ["early", "early_ok", "early_bad"])

@@ -41,7 +41,9 @@ CHECK_PAGE = r"""
     leftover: leftover.slice(0, 3),
     images: images.length,
     broken: images.filter(i => !(i.complete && i.naturalWidth > 0)).map(i => (i.id || i.src).slice(0, 60)),
-    animations: document.querySelectorAll('.animation').length,
+    // to_jshtml players, or animated PNG images (mslab.plots.animation_image: an acTL chunk)
+    animations: document.querySelectorAll('.animation').length + images.filter(i =>
+      i.src.startsWith('data:image/png') && atob(i.src.slice(22, 4022)).includes('acTL')).length,
   });
 })()
 """

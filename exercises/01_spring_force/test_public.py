@@ -1,4 +1,4 @@
-"""Public tests of exercise 01 (run them: ``pytest exercises/01_spring_force``)."""
+"""Public tests of exercise 01 (run them from the folder above: ``pytest 01_spring_force``)."""
 
 import numpy as np
 import pytest

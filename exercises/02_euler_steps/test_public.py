@@ -1,4 +1,4 @@
-"""Public tests of exercise 02 (run them: ``pytest exercises/02_euler_steps``)."""
+"""Public tests of exercise 02 (run them from the folder above: ``pytest 02_euler_steps``)."""
 
 import numpy as np
 import pytest

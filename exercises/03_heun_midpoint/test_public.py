@@ -1,4 +1,4 @@
-"""Public tests of exercise 03 (run them: ``pytest exercises/03_heun_midpoint``)."""
+"""Public tests of exercise 03 (run them from the folder above: ``pytest 03_heun_midpoint``)."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""Public tests of exercise 04 (run them: ``pytest exercises/04_rk4_tableau``)."""
+"""Public tests of exercise 04 (run them from the folder above: ``pytest 04_rk4_tableau``)."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""Public tests of exercise 05 (run them: ``pytest exercises/05_verlet_leapfrog``)."""
+"""Public tests of exercise 05 (run them from the folder above: ``pytest 05_verlet_leapfrog``)."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""Public tests of exercise 06 (run them: ``pytest exercises/06_implicit_euler``)."""
+"""Public tests of exercise 06 (run them from the folder above: ``pytest 06_implicit_euler``)."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""Public tests of exercise 07 (run them: ``pytest exercises/07_stability_function``)."""
+"""Public tests of exercise 07 (run them from the folder above: ``pytest 07_stability_function``)."""
 
 import math
 

@@ -1,4 +1,4 @@
-"""Public tests of exercise 08 (run them: ``pytest exercises/08_penalty_collision``)."""
+"""Public tests of exercise 08 (run them from the folder above: ``pytest 08_penalty_collision``)."""
 
 import numpy as np
 import pytest

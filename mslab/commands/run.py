@@ -58,6 +58,8 @@ if TYPE_CHECKING:
 EXIT_UNSTABLE = 3
 #: exit code of an interrupted run (128 + SIGINT)
 EXIT_INTERRUPTED = 130
+#: room for the figures besides the saved data (the .npz is at most its raw size)
+OUTPUT_EXTRA_BYTES = 2**20
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -83,11 +85,26 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def drift_words(drift: float, method: str) -> str:
-    """Say what a relative change of the ledger ``K + U + D - W_ext`` means (the method's, not physics)."""
-    if not math.isfinite(drift) or abs(drift) <= 1e-6:
+def drift_words(drift: np.ndarray | float, method: str) -> str:
+    """Say what the relative change of the ledger ``K + U + D - W_ext`` over a run means.
+
+    ``drift``: the relative drift at each saved sample (a number: the final one only). Below
+    1e-6 nothing is said. A drift whose largest size in the second half of the run is within
+    1.5 times that of the first half is bounded (a symplectic method's energy error
+    oscillates; a steady drift doubles from the middle to the end); otherwise its sign says
+    whether the method adds energy or damps it numerically.
+    """
+    series = np.atleast_1d(np.asarray(drift, dtype=float))
+    final = float(series[-1]) if series.size else math.nan
+    if not math.isfinite(final) or abs(final) <= 1e-6:
         return ""
-    if drift < 0:
+    if series.size >= 4 and np.all(np.isfinite(series)):
+        half = series.size // 2
+        early, late = np.abs(series[:half + 1]).max(), np.abs(series[half:]).max()
+        if late <= 1.5 * early:
+            return (f" (bounded: the ledger oscillates within +-{np.abs(series).max():.1e} without growing, "
+                    f"{method}'s energy error)")
+    if final < 0:
         return f" (the ledger lost energy: numerical damping of {method})"
     return f" (the ledger gained energy: {method} adds energy)"
 
@@ -227,7 +244,7 @@ def _report(args: argparse.Namespace, scene: Scene, traj: Trajectory, predicted:
             f"D = {e['final_dissipated']:.4g}"
             + (f", W_ext = {e['final_external']:.4g}" if driven else "") + "); "
             f"relative drift {e['relative_drift']:.3e}, max |drift| {e['max_abs_relative_drift']:.3e}"
-            + drift_words(e["relative_drift"], s.method),
+            + drift_words(traj.energy.relative_drift(), s.method),
         )
     for key, path in files.items():
         say(args, f"wrote {key.replace('_', ' ')}: {path}")
@@ -255,6 +272,12 @@ def run(args: argparse.Namespace) -> int:
     if problem:
         raise CommandError(problem, where=str(args.scene), key="run")
     folder = out_path(args, default=f"out/{scene.name}" if args.animate else None)
+    if folder is not None:  # found now, not after the run: its results would be lost
+        from mslab.files import output_problem
+
+        problem = output_problem(folder, cost.bytes_saved + OUTPUT_EXTRA_BYTES)
+        if problem:
+            raise CommandError(problem, key="--out")
     notes: list[str] = []
     if not args.json:
         say(args, f"{scene.name}: {scene.n_particles} particles, dim {scene.dim}, "

@@ -25,7 +25,6 @@ if TYPE_CHECKING:
     import scipy.sparse as sp
 
 
-
 def anchor_kernel(x: np.ndarray, v: np.ndarray, f: np.ndarray, particles: np.ndarray, points: np.ndarray,
                   stiffness: np.ndarray) -> float:
     """Compiled-style kernel: ``f[p] -= k (x[p] - a)`` for every anchor; no power."""

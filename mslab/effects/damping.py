@@ -14,7 +14,6 @@ if TYPE_CHECKING:
     import scipy.sparse as sp
 
 
-
 def damping_kernel(x: np.ndarray, v: np.ndarray, f: np.ndarray, gamma: float) -> float:
     """Compiled-style kernel: ``f -= gamma v``; return the power ``gamma |v|^2``."""
     n, dim = f.shape

@@ -1,7 +1,9 @@
 """The scene-format tables of ``docs/scenes.md``, generated from the registered effects' schemas.
 
 ``python -m mslab.effects.docs`` prints the block; ``python -m mslab.effects.docs docs/scenes.md``
-rewrites it in place between the markers. A test checks the docs hold the current block.
+rewrites it in place between the markers. ``make docs`` runs that, and ``make test`` and
+``make site`` run it first, so a new effect file needs no hand edit of the docs; a test
+checks the docs hold the current block (and names the command when they do not).
 """
 
 from __future__ import annotations

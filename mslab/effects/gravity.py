@@ -20,7 +20,6 @@ if TYPE_CHECKING:
     import scipy.sparse as sp
 
 
-
 def down(dim: int) -> np.ndarray:
     """Return the unit vector pointing down: -y in 2D, -z in 3D, -x in 1D."""
     e = np.zeros(dim)

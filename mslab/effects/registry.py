@@ -33,6 +33,10 @@ def register(cls: type[Effect]) -> type[Effect]:
         raise TypeError(f"register() takes an Effect subclass, got {cls!r}")
     if not cls.name or cls.name == Effect.name:
         raise ValueError(f"{cls.__name__}: set the class attribute 'name'")
+    old = _registry.get(cls.name)
+    if old is not None and old.__module__ != cls.__module__:
+        raise ValueError(f"effect name {cls.name!r} of {_file(cls)} is already registered by {_file(old)}: "
+                         f"choose another name (built-in and other files' effects are never replaced)")
     for method in cls.builder_methods:
         if not callable(getattr(cls, method, None)):
             raise ValueError(f"{cls.__name__}: builder method '{method}' is not defined on the class")
@@ -44,6 +48,10 @@ def register(cls: type[Effect]) -> type[Effect]:
     for listener in _listeners:
         listener(cls)
     return cls
+
+
+def _file(cls: type) -> str:
+    return str(getattr(sys.modules.get(cls.__module__), "__file__", None) or cls.__module__)
 
 
 def on_register(listener: Callable[[type[Effect]], None]) -> None:
@@ -104,6 +112,7 @@ def get_effect(name: str) -> type[Effect]:
     _discovered()
     if name not in _registry:
         discover()
+    warn_broken()
     return _registry[name]
 
 

@@ -32,6 +32,7 @@ class SpringTable:
         self.kind: list[str] = []
         self._index: dict[int, int] = {}  # (min, max) pair key -> spring index
         self._batches: list[tuple[int, str, bool, int]] = []  # (first spring, where, explicit, pairs offset)
+        self._open_batch = -1  # len(_batches) after add_one opened its batch (it adds to it since)
 
     def label(self, q: int) -> str:
         """Where spring ``q`` came from: ``springs.shear.pairs[3]``, or ``spring 7`` from the builder."""
@@ -117,19 +118,21 @@ class SpringTable:
         rest length (an error): :meth:`add` raises or merges as for any batch. ``xi``, ``xj``:
         the positions of ``i`` and ``j`` (the rest length is computed as :meth:`add` does).
         """
-        key = (min(i, j) << 32) | max(i, j)
+        key = (i << 32) | j if i < j else (j << 32) | i
         if key in self._index:
             return None
         if rest_length is None:  # the sum in numpy's order: sqrt((d0^2 + d1^2) + d2^2)
             squares = 0.0
             for a, b in zip(xi, xj, strict=True):
-                squares += (a - b) * (a - b)
+                d = a - b
+                squares += d * d
             rest_length = math.sqrt(squares)
             if rest_length == 0.0:
                 return None
         q = len(self.i)
-        if not self._batches or self._batches[-1][1:] != ("springs.", False, 0):
+        if self._open_batch != len(self._batches):  # the last batch is not one of these: open one
             self._batches.append((q, "springs.", False, 0))
+            self._open_batch = len(self._batches)
         self._index[key] = q
         self.i.append(i)
         self.j.append(j)

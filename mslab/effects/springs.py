@@ -25,7 +25,6 @@ if TYPE_CHECKING:  # scipy.sparse is imported on first use: `import mslab` stays
     import scipy.sparse as sp
 
 
-
 def scatter_pairs(f: np.ndarray, i: np.ndarray, j: np.ndarray, n: int) -> np.ndarray:
     """Sum pair forces ``+f`` onto particles ``i`` and ``-f`` onto ``j`` -> (n, dim)."""
     out = np.empty((n, f.shape[1]))
@@ -34,15 +33,20 @@ def scatter_pairs(f: np.ndarray, i: np.ndarray, j: np.ndarray, n: int) -> np.nda
     return out
 
 
+_INTEGERS = (int, np.integer)
+_NUMBERS = (int, float, np.integer, np.floating)
+_BOOLS = (bool, np.bool_)
+
+
 def _index(value: object, n: int) -> bool:
     """``value`` is a particle index in ``0..n-1`` (as the schema's ``index`` accepts)."""
-    return isinstance(value, int | np.integer) and not isinstance(value, bool | np.bool_) and 0 <= value < n
+    return isinstance(value, _INTEGERS) and not isinstance(value, _BOOLS) and 0 <= value < n
 
 
 def _non_negative(value: object) -> bool:
     """``value`` is a finite number >= 0 (as the schema's ``number`` with ``low=0`` accepts)."""
-    return (isinstance(value, int | float | np.integer | np.floating)
-            and not isinstance(value, bool | np.bool_) and math.isfinite(value) and value >= 0.0)
+    return (isinstance(value, _NUMBERS) and not isinstance(value, _BOOLS) and math.isfinite(value)
+            and value >= 0.0)
 
 
 @register

@@ -33,7 +33,6 @@ if TYPE_CHECKING:
     import scipy.sparse as sp
 
 
-
 def wind_kernel(x: np.ndarray, v: np.ndarray, f: np.ndarray, drag: float, velocity: np.ndarray) -> float:
     """Compiled-style kernel: ``f += -c (v - w)``; return the dissipated power ``c |v|^2``."""
     n, dim = f.shape

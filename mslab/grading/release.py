@@ -25,10 +25,16 @@ its equations), one Python file with the functions to write (replace every
 `raise NotImplementedError`; keep the file name and the function names) and
 `test_public.py`, tests you can run yourself.
 
+The lessons are the notebooks in the `lessons/` folder of the course repository. Open them
+with `make lab` in the repository (it installs everything into `.venv` and starts JupyterLab),
+or after `pip install "mslab[lessons]"` with `jupyter lab` in that folder; in each lesson,
+Kernel > Restart Kernel and Run All Cells brings its sliders to life.
+
 ## Run the public tests on your work
 
 From this folder, with `mslab` installed (the package your course hands out, installed with
-`pip install`; the public tests compare your results with the library):
+`pip install`; the public tests compare your results with the library), in a terminal or in
+JupyterLab's (File > New > Terminal; `make lab` makes its `pytest` the one of `.venv`):
 
 ```
 pytest 03_heun_midpoint          # one exercise

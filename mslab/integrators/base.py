@@ -21,12 +21,13 @@ from __future__ import annotations
 
 import difflib
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mslab.errors import broken_files, warn_broken
+from mslab.errors import broken_files, note_broken, warn_broken
 from mslab.state import State
 
 if TYPE_CHECKING:
@@ -109,6 +110,10 @@ _REGISTRY: dict[str, Integrator] = {}
 #: name -> (file that registered it, registered from ``__main__``: a script or notebook)
 _ORIGIN: dict[str, tuple[str, bool]] = {}
 
+#: the order check :func:`set_order_check` installs, and the methods registered before it was
+_order_check: Callable[[Integrator], None] | None = None
+_PENDING: list[tuple[Integrator, str, int]] = []
+
 #: The package's own method modules. Their declared orders are held equal to the derived
 #: ones by the tests (``tests/test_derive.py``) instead of at every import, which would load
 #: sympy on ``import mslab``; every other registration derives its order when it is made.
@@ -128,7 +133,9 @@ def register(method: Integrator) -> Integrator:
     * the order: derived from the coefficients with :func:`mslab.derive.order` (rooted
       trees, exact for exact coefficients) for a tableau or splitting registered from
       anywhere but the package's built-in modules; a declared order that differs is
-      refused with both numbers, and ``order=0`` (not declared) takes the derived one.
+      refused with both numbers, and ``order=0`` (not declared) takes the derived one
+      (:func:`mslab.derive.declared.check_declared_order`, installed by
+      :func:`set_order_check`).
     """
     if not method.name or not method.name.replace("_", "").isalnum():
         raise ValueError(f"a registered method needs a name of letters, digits and '_', got {method.name!r}")
@@ -139,8 +146,13 @@ def register(method: Integrator) -> Integrator:
     _check_name(method.name, origin)
     _check_consistent(method)
     path = Path(origin[0])
-    if not (path.stem in BUILT_IN_MODULES and path.resolve().parent == Path(__file__).resolve().parent):
-        _check_order(method)
+    built_in = path.stem in BUILT_IN_MODULES and path.resolve().parent == Path(__file__).resolve().parent
+    has_coefficients = bool({"A", "drift"} & set(method.coefficients))
+    if has_coefficients and not built_in:
+        if _order_check is not None:
+            _order_check(method)
+        else:  # imported before the check was installed: checked by set_order_check
+            _PENDING.append((method, origin[0], frame.f_lineno))
     _REGISTRY[method.name] = method
     _ORIGIN[method.name] = origin
     return method
@@ -152,8 +164,8 @@ def _check_name(name: str, origin: tuple[str, bool]) -> None:
     before = _ORIGIN.get(name, ("<unknown>", False))
     if before[0] == origin[0] or (before[1] and origin[1]):
         return
-    raise ValueError(f"method name {name!r} is already registered by {before[0]}: choose another name "
-                     f"(built-in and other files' methods are never replaced)")
+    raise ValueError(f"method name {name!r} of {origin[0]} is already registered by {before[0]}: choose "
+                     f"another name (built-in and other files' methods are never replaced)")
 
 
 def _close_to(value: float, target: float, scale: float) -> bool:
@@ -182,30 +194,28 @@ def _check_consistent(method: Integrator) -> None:
                              f"(inconsistent: not even order 1)")
 
 
-def _check_order(method: Integrator) -> None:
-    """Derive the order of a tableau or splitting; refuse a declared order that differs."""
-    if not ({"A", "drift"} & set(method.coefficients)):
-        return  # the adapters and a user's own Integrator subclass: no coefficients to read
-    from mslab.derive import order  # analysis of what enters the registry; loads sympy
+def set_order_check(check: Callable[[Integrator], None]) -> None:
+    """Install the check of declared orders and run it on the methods registered before.
 
-    declared = int(method.order)
-    try:
-        derived = order(method, max_order=declared if declared > 0 else 8)
-    except ValueError as err:
-        if "order >" not in str(err):
-            raise ValueError(f"method {method.name!r}: {err}") from None
-        derived = None
-    if declared == 0 and derived is not None:
-        method.order = derived
-        return
-    if derived == declared:
-        return
-    found = f"more than {declared}" if derived is None else str(derived)
-    hint = ""
-    if method.family == "splitting" and derived is not None and derived < declared:
-        hint = " (a splitting steps drift first: to begin with a kick, begin drift with a 0)"
-    raise ValueError(f"method {method.name!r} declares order {declared}, but its coefficients have order "
-                     f"{found} (mslab.derive.order){hint}")
+    The check derives the order from the coefficients (:mod:`mslab.derive`, an analysis layer
+    above this one): the package's ``__init__`` installs it right after the method files
+    were imported, so the files found then are checked here. A method it refuses is taken
+    out with everything its file registered, and its file is reported in one line.
+    """
+    global _order_check
+    _order_check = check
+    pending = list(_PENDING)
+    _PENDING.clear()
+    for method, path, line in pending:
+        if _REGISTRY.get(method.name) is not method:
+            continue  # replaced or removed since
+        try:
+            check(method)
+        except ValueError as err:
+            for name in [n for n, (file, _) in _ORIGIN.items() if file == path]:
+                _REGISTRY.pop(name, None)
+                _ORIGIN.pop(name, None)
+            note_broken(f"{path}:{line}: {err}")
 
 
 def methods() -> list[str]:

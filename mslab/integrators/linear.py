@@ -46,6 +46,7 @@ Newton direction), ``n_lin_iter`` (every CG iteration), ``n_jac`` (every Jacobia
 
 from __future__ import annotations
 
+import time
 import weakref
 from typing import TYPE_CHECKING
 
@@ -99,8 +100,10 @@ class Factor:
 
     def __init__(self, A: sp.spmatrix | np.ndarray, counters: Counters, definite_only: bool = False,
                  pattern: FreePattern | None = None):
+        start = time.perf_counter()
         self.pattern = pattern  # A's kept pattern (A is then pattern.matrix(data)), or None
         self._build(A, counters, definite_only)
+        self.seconds = time.perf_counter() - start  # wall time of the factorisation (lesson 04 shows it)
 
     def _build(self, A: sp.spmatrix | np.ndarray, counters: Counters, definite_only: bool) -> None:
         import scipy.linalg as sla
@@ -175,8 +178,16 @@ class Factor:
         x = self._splu.solve(b)
         return bool(np.all(np.isfinite(x)) and np.linalg.norm(self.A @ x - b) <= 1e-8 * np.linalg.norm(b))
 
+    solve_seconds: float = 0.0  # wall time of the last solve (lesson 04 shows it; no decision reads it)
+
     def solve(self, b: np.ndarray) -> np.ndarray:
-        """``A^-1 b``."""
+        """``A^-1 b`` (timed)."""
+        start = time.perf_counter()
+        x = self._solve(b)
+        self.solve_seconds = time.perf_counter() - start
+        return x
+
+    def _solve(self, b: np.ndarray) -> np.ndarray:
         import scipy.linalg as sla
 
         if self.kind == "cholmod":

@@ -11,3 +11,6 @@ __all__ += ["plot_oscillator_stability", "plot_stability_regions"]
 from mslab.plots.scene import animate, plot_configuration  # noqa: E402
 
 __all__ += ["animate", "plot_configuration"]
+from mslab.plots.movie import animation_image, animation_png  # noqa: E402
+
+__all__ += ["animation_image", "animation_png"]

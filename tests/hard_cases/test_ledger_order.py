@@ -12,7 +12,8 @@ def _slope(scene, method, dts, t_end):
     for dt in dts:
         tr = mslab.simulate(scene, method, dt=dt, t_end=t_end, save_every=10)
         errors.append(float(np.max(np.abs(tr.energy.total - tr.energy.total[0]))))
-    return np.polyfit(np.log(dts), np.log(errors), 1)[0], errors
+    slope = np.polyfit(np.log(dts), np.log(errors), 1)[0] if len(dts) > 1 else np.nan
+    return slope, errors
 
 
 #: symplectic Runge-Kutta methods conserve quadratic invariants: their ledger closes to round-off
@@ -20,13 +21,28 @@ QUADRATIC = [m for m in mslab.methods()
              if mslab.get_method(m).family == "implicit_rk" and mslab.get_method(m).symplectic]
 
 
+#: ledger drifts below this say nothing about the order (round-off is ~1e-15 here)
+FLOOR = 1e-12
+
+
 @pytest.mark.parametrize("method", [m for m in mslab.methods() if m not in QUADRATIC])
 def test_damped_oscillator_ledger_order(method):
+    """The slope between the two finest steps (h w0 = 0.1 .. 0.0125) whose drift is above FLOOR.
+
+    The drift is ``C h^p (1 + D h + ...)``: a fit over coarse steps reads low for a method
+    with a large ``D`` (the 3/8-rule RK4: 3.87 over h = 0.02 .. 0.005 against a bound of
+    3.85); the finest pair still far above round-off sees ``p``.
+    """
     scene = oscillator(stiffness=4.0, gamma=0.4, displacement=0.3)
     order = mslab.get_method(method).order
-    # high orders reach round-off at small steps: fit them where the error is still visible
-    dts = [0.02, 0.01, 0.005] if order <= 4 else [0.05, 0.025, 0.0125]
-    slope, errors = _slope(scene, method, dts, 2.0)
+    errors = []
+    for dt in (0.05, 0.025, 0.0125, 0.00625):
+        error = _slope(scene, method, [dt], 2.0)[1][0]
+        if error < FLOOR:
+            break
+        errors.append(error)
+    assert len(errors) >= 2, errors
+    slope = float(np.log2(errors[-2] / errors[-1]))
     assert slope > order - 0.15, (slope, errors)  # at least the method's order (Heun: 3 on a linear problem)
     assert slope < order + 1.15
 

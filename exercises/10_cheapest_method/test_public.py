@@ -1,0 +1,52 @@
+"""Public tests of exercise 10 (run them: ``pytest exercises/10_cheapest_method``)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from mslab.grading.checks import check_scalar
+
+MODULE = "cheapest_method"
+
+
+@pytest.mark.points(2)
+def test_fit_recovers_an_exact_and_a_noisy_power_law(student):
+    dts = [0.2, 0.1, 0.05, 0.025]
+    C, p = student.fit_error_model(dts, [0.7 * h**2.5 for h in dts])
+    check_scalar(C, 0.7, rtol=1e-9, what="C")
+    check_scalar(p, 2.5, rtol=1e-9, what="p")
+    noisy = [3.0 * h * (1 + 0.2 * s) for h, s in zip(dts, (0.5, -1.0, 0.8, -0.3), strict=True)]
+    slope, log_c = np.polyfit(np.log(dts), np.log(noisy), 1)
+    C, p = student.fit_error_model(dts, noisy)
+    check_scalar(p, slope, rtol=1e-9, what="p (least squares)")
+    check_scalar(C, math.exp(log_c), rtol=1e-9, what="C (least squares)")
+
+
+@pytest.mark.points(2)
+def test_step_and_cost_of_one_method(student):
+    h = student.step_for_target(3.0, 2.0, 1e-4)
+    check_scalar(h, math.sqrt(1e-4 / 3.0), rtol=1e-12, what="h")
+    # t_end / h = 173.2: the run needs 174 steps (173 would be a larger step, more error than asked)
+    n_steps, n_force = student.predicted_cost(h, 1.0, 4, 1)
+    assert (int(n_steps), int(n_force)) == (174, 697), \
+        f"(n_steps, n_force) = {(n_steps, n_force)}, expected (174, 697)"
+
+
+@pytest.mark.points(2)
+def test_loose_target_goes_to_low_order_and_tight_to_high_order(student):
+    dts = [0.1, 0.05, 0.025]
+    runs = {"first": {"dts": dts, "errors": [0.05 * h for h in dts], "evals_per_step": 1,
+                      "start_evals": 0},
+            "fourth": {"dts": dts, "errors": [2.0 * h**4 for h in dts], "evals_per_step": 4,
+                       "start_evals": 0}}
+    # 'first': h = 0.26, 4 steps, 4 evaluations; 'fourth': h = 0.284, 4 steps, 16 evaluations
+    name, n_steps, n_force = student.cheapest(runs, 1.3e-2, 1.0)
+    assert name == "first", f"loose target 1.3e-2: chose {name!r}"
+    assert (int(n_steps), int(n_force)) == (4, 4), \
+        f"(n_steps, n_force) = {(n_steps, n_force)}, expected (4, 4)"
+    name, n_steps, n_force = student.cheapest(runs, 1e-6, 1.0)
+    # 'first' needs 50000 steps; 'fourth' h = (5e-7)^(1/4) = 0.0266: 38 steps, 152 evaluations
+    assert name == "fourth", f"tight target 1e-6: chose {name!r}"
+    assert (int(n_steps), int(n_force)) == (38, 152), \
+        f"(n_steps, n_force) = {(n_steps, n_force)}, expected (38, 152)"

@@ -1,0 +1,56 @@
+"""Public tests of exercise 11 (run them: ``pytest exercises/11_shear_bend_springs``)."""
+
+import numpy as np
+import pytest
+
+from mslab.grading.checks import check_array, check_shape
+from mslab.scenes import grid_springs
+
+MODULE = "cloth_springs"
+
+
+def as_set(pairs, n_particles):
+    """Unordered pairs as a set; fails on duplicates, self-springs and indices off the grid."""
+    pairs = np.asarray(pairs)
+    assert pairs.ndim == 2 and pairs.shape[1] == 2, f"pairs: shape {pairs.shape}, expected (n_springs, 2)"
+    found = set()
+    for a, b in pairs.tolist():
+        assert a != b and 0 <= a < n_particles and 0 <= b < n_particles, f"bad pair ({a}, {b})"
+        key = (min(a, b), max(a, b))
+        assert key not in found, f"pair {key} appears twice"
+        found.add(key)
+    return found
+
+
+def lengths(x, pairs):
+    pairs = np.asarray(pairs)
+    return np.linalg.norm(x[pairs[:, 0]] - x[pairs[:, 1]], axis=1)
+
+
+@pytest.mark.points(2)
+def test_structural_springs_of_a_3_by_4_grid(student):
+    got = as_set(student.grid_springs(3, 4, "structural"), 12)
+    assert len(got) == 2 * 3 * 4 - 3 - 4, f"{len(got)} structural springs, expected 17"
+    assert got == as_set(grid_springs((3, 4), "structural"), 12), "not the neighbours along rows and columns"
+
+
+@pytest.mark.points(2)
+def test_shear_springs_are_both_diagonals_of_every_cell(student):
+    got = as_set(student.grid_springs(4, 3, "shear"), 12)
+    assert len(got) == 2 * 3 * 2, f"{len(got)} shear springs, expected 12 (two per cell)"
+    assert got == as_set(grid_springs((4, 3), "shear"), 12), "not the two diagonals of each cell"
+
+
+@pytest.mark.points(2)
+def test_the_shear_mode_is_free_for_structural_springs_only(student):
+    n_rows, n_cols, h, theta = 4, 5, 0.2, np.radians(25.0)
+    x = np.asarray(student.sheared(n_rows, n_cols, h, theta), dtype=float)
+    check_shape(x, (20, 2), what="x")
+    i, j = np.divmod(np.arange(20), n_cols)
+    check_array(x[:, 1], i * h * np.cos(theta), what="y")
+    flat = np.stack([j * h, i * h], axis=1)
+    structural, shear = grid_springs((n_rows, n_cols), "structural"), grid_springs((n_rows, n_cols), "shear")
+    check_array(lengths(x, structural), lengths(flat, structural), rtol=1e-12, atol=1e-14,
+                what="structural spring lengths after shearing")
+    change = np.abs(lengths(x, shear) - lengths(flat, shear))
+    assert change.min() > 0.01 * h, "every shear spring must change its length under shear"

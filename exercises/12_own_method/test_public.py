@@ -1,0 +1,54 @@
+"""Public tests of exercise 12 (run them: ``pytest exercises/12_own_method``)."""
+
+from fractions import Fraction as Fr
+
+import numpy as np
+import pytest
+
+from mslab import ExplicitRK
+from mslab.derive import order
+from mslab.grading.checks import check_array, check_shape
+
+MODULE = "own_method"
+
+KUTTA3 = (np.array([[0, 0, 0], [0.5, 0, 0], [-1, 2, 0]], dtype=float), np.array([1 / 6, 2 / 3, 1 / 6]))
+HEUN3 = (np.array([[0, 0, 0], [1 / 3, 0, 0], [0, 2 / 3, 0]], dtype=float), np.array([0.25, 0.0, 0.75]))
+
+
+def tableau(out):
+    assert isinstance(out, tuple | list) and len(out) == 2, "return (A, b)"
+    A, b = np.asarray(out[0], dtype=float), np.asarray(out[1], dtype=float)
+    check_shape(A, (3, 3), what="A")
+    check_shape(b, (3,), what="b")
+    assert np.all(np.triu(A) == 0.0), "A must be strictly lower triangular (an explicit method)"
+    return A, b
+
+
+@pytest.mark.points(2)
+def test_residuals_of_kutta_and_of_a_second_order_method(student):
+    check_array(student.order3_conditions(*KUTTA3), np.zeros(4), atol=1e-14, what="Kutta's residuals")
+    # Heun's second-order method (two stages): order 2 holds, the two order-3 conditions fail
+    A = np.array([[0.0, 0.0], [1.0, 0.0]])
+    b = np.array([0.5, 0.5])
+    check_array(student.order3_conditions(A, b), [0.0, 0.0, 0.5 - 1 / 3, -1 / 6], atol=1e-14,
+                what="Heun's residuals")
+
+
+@pytest.mark.points(2)
+def test_kutta_family_gives_kutta_and_heun3(student):
+    for (c2, c3), (A, b) in (((0.5, 1.0), KUTTA3), ((1 / 3, 2 / 3), HEUN3)):
+        got_A, got_b = tableau(student.kutta_family(c2, c3))
+        check_array(got_A, A, atol=1e-13, what=f"A at c2 = {c2:.3g}, c3 = {c3:.3g}")
+        check_array(got_b, b, atol=1e-13, what=f"b at c2 = {c2:.3g}, c3 = {c3:.3g}")
+
+
+@pytest.mark.points(2)
+def test_my_method_has_derived_order_three(student):
+    A, b = tableau(student.my_method())
+    p = order(ExplicitRK(A, b, name="student"))
+    assert p == 3, f"derived order {p}, expected 3"
+    known = {"SSPRK3": [1, Fr(1, 2)], "Kutta's": [Fr(1, 2), 1], "Heun's": [Fr(1, 3), Fr(2, 3)],
+             "Ralston's": [Fr(1, 2), Fr(3, 4)]}
+    for name, nodes in known.items():
+        assert not np.allclose(A.sum(axis=1)[1:], np.array(nodes, dtype=float)), \
+            f"these are the nodes of {name} method (lesson 10): choose your own"
