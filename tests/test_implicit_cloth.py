@@ -329,6 +329,15 @@ def test_chebyshev_counts_its_setup_and_keeps_the_contract():
     assert work[0]["n_factor"] == 1 and work[1]["n_factor"] == work[2]["n_factor"] == 0
     assert work[0]["n_solve"] == 10 + POWER_ITERATIONS and work[0]["n_force"] == 11 + POWER_ITERATIONS
     assert work[1] == work[2] and work[1]["n_solve"] == work[1]["n_force"] == work[1]["n_iter"] == 10
+    # start() does the setup before the first frame (as simulate calls it): counted there, not in the frame
+    fresh = mslab.load_scene("cloth")
+    before = fresh.system.counters.snapshot()
+    method.start(fresh.system, fresh.state0, 1 / 30)
+    setup = fresh.system.counters.since(before)
+    assert setup["n_factor"] == 1 and setup["n_solve"] == POWER_ITERATIONS
+    before = fresh.system.counters.snapshot()
+    method.step(fresh.system, fresh.state0, 1 / 30)
+    assert fresh.system.counters.since(before) == work[1]
     pinned = s.pinned
     np.testing.assert_array_equal(state.x[pinned], scene.state0.x[pinned])
     free = cloth(8, 8, gravity=None, pin="none")

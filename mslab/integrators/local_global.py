@@ -46,7 +46,9 @@ estimated once per system and dt by :func:`spectral_radius`: power iteration
 (:data:`POWER_ITERATIONS` steps from a fixed random start) on the map's linearisation at the
 first step's inertial guess ``y``, ``delta -> Q^-1 h^2 [d(J d + f_other)/dx delta]_free``, the
 derivative by a finite difference of the local step; each power step is one counted force
-evaluation and solve. Power iteration approaches ``rho`` from below. Wang's form takes
+evaluation and solve. The estimate tends to ``rho`` (from below in practice: the safe side,
+an over-estimate makes the extrapolation diverge); an estimate >= 1 (a map that does not
+contract there) switches the extrapolation off. Wang's form takes
 ``relax = 1, r = rho`` (``one_sided=False``). The default (``one_sided=True``) uses that this
 map's spectrum is one-sided, in ``[0, rho]``: the local step's derivative ``k L/l (I - u u^T)``
 is positive semidefinite for any spring length ``l``, so ``Q^-1 h^2 J'`` is similar to a
@@ -285,6 +287,29 @@ class LocalGlobal(Integrator):
         return out
 
     # -- stepping ---------------------------------------------------------------------------------
+    def start(self, system: System, state: State, dt: float) -> State:
+        """Set up before the first frame: the global matrix's factorisation and Chebyshev's ``rho``.
+
+        Counted as they happen (``n_factor``; the estimate's force evaluations and solves);
+        a step without it does the same on first use. Returns ``state``.
+        """
+        if not system.pinned.all():
+            g = global_step(system, dt)
+            if self.chebyshev and self.rho is None and g.rho is None:
+                y = state.x + dt * state.v
+                self.weights(g, system, y, state.x, self._base(g, system, state, dt), dt)
+        return state
+
+    @staticmethod
+    def _base(g: GlobalStep, system: System, state: State, dt: float) -> np.ndarray:
+        """Return the constant part of the right-hand side, ``M y + h gamma x_n - h^2 L_fp x_p``."""
+        y = state.x + dt * state.v
+        free = g.free
+        base = system.mass[free, None] * y[free] + (dt * g.gamma) * state.x[free]
+        if g.lap_fp.nnz:
+            base = base - (dt * dt) * (g.lap_fp @ y[g.pinned])
+        return base
+
     def weights(self, g: GlobalStep, system: System, y: np.ndarray, xn: np.ndarray, base: np.ndarray,
                 dt: float) -> tuple[np.ndarray, float]:
         """Return Chebyshev's weights ``omega_k`` and relaxation (1 without Chebyshev; module docstring)."""
@@ -309,11 +334,7 @@ class LocalGlobal(Integrator):
         c = system.counters
         xn, vn = state.x, state.v
         y = xn + dt * vn
-        free = g.free
-        # constant part of the right-hand side: M y + h gamma x_n - h^2 L_fp x_p (pinned x = y)
-        base = system.mass[free, None] * y[free] + (dt * g.gamma) * xn[free]
-        if g.lap_fp.nnz:
-            base = base - (dt * dt) * (g.lap_fp @ y[g.pinned])
+        base = self._base(g, system, state, dt)
         omega, relax = self.weights(g, system, y, xn, base, dt)
         x = y.copy()
         prev = y.copy()  # the iterate before the last (Chebyshev)
