@@ -1,7 +1,13 @@
 """mslab: a numerical-methods workbench for mass-spring systems.
 
-Public API (see DESIGN.md); this module only re-exports.
+Public API (see DESIGN.md); this module only re-exports (and, on the command line, makes a
+Ctrl-C during the imports below end with exit 130 and one line: :mod:`mslab.interrupts`).
 """
+
+# ruff: noqa: E402  (the imports below come after the Ctrl-C handling of the command line)
+from mslab import interrupts
+
+interrupts.starting()
 
 from mslab.errors import ConvergenceError, InstabilityError, MslabError, SceneError, StabilityWarning
 from mslab.integrators import (

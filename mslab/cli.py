@@ -1,7 +1,9 @@
 """The ``mslab`` command line.
 
 Every user mistake ends as one line ``mslab: error: ...`` with exit code 2 and no
-traceback; every subcommand takes ``--json`` and (where it writes) ``--out DIR``.
+traceback; every subcommand takes ``--json`` and (where it writes) ``--out DIR``. Ctrl-C ends
+with exit code 130 and one line at any moment (:mod:`mslab.interrupts`); a compilation by
+numba is announced on stderr (not with ``--json``).
 """
 
 from __future__ import annotations
@@ -10,6 +12,7 @@ import argparse
 import importlib
 import sys
 
+from mslab import interrupts
 from mslab.commands.common import CommandError
 from mslab.errors import MslabError, take_broken
 
@@ -44,6 +47,23 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the ``mslab`` command line on ``argv`` (default ``sys.argv[1:]``); return the exit code."""
+    from mslab import jit  # (imports no numba)
+
+    announcer = jit.announce_with(None)
+    with interrupts.command_line():
+        try:
+            code = _main(argv)
+        except KeyboardInterrupt:
+            interrupts.finishing()
+            print("mslab: interrupted", file=sys.stderr)
+            code = interrupts.EXIT_INTERRUPTED
+        finally:
+            interrupts.finishing()
+            jit.announce_with(announcer)
+    return interrupts.leave(code)
+
+
+def _main(argv: list[str] | None) -> int:
     for line in take_broken():  # a method or effect file that failed to load: the rest works
         print(f"mslab: warning: {line} (file skipped)", file=sys.stderr)
     parser = build_parser()
@@ -51,15 +71,16 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    from mslab import jit
+    from mslab.progress import compile_notice
+
+    jit.announce_with(None if getattr(args, "json", False) else compile_notice)
     try:
         return int(args.func(args) or 0)
     except (CommandError, MslabError, ValueError, OSError) as err:
         message = str(err).splitlines()[0] if str(err) else type(err).__name__
         print(f"mslab: error: {message}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("mslab: interrupted", file=sys.stderr)
-        return 130
 
 
 if __name__ == "__main__":

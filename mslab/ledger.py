@@ -44,12 +44,16 @@ class Samples:
         Dissipated work at each saved state.
     k : int
         Slots ``[0, k)`` are filled.
+    marks : list
+        ``(stepping seconds, counters)`` of the session when each sample was saved: where a
+        run reported as stopped at that sample stops.
     """
 
     def __init__(self, system: System, shape: tuple, save_every: int, end: int | None):
         self.system, self.save_every, self.end = system, save_every, end
         self.shape = shape
         self.k = 0
+        self.marks: list = []
         self._filled = 0  # samples [0, _filled) have K, U, W_ext
         if end is not None:
             steps = save_indices(end, save_every)
@@ -80,10 +84,11 @@ class Samples:
         n = max(2 * self.steps.size, stop // self.save_every + 1)
         self._allocate(np.arange(n, dtype=np.int64) * self.save_every)
 
-    def add(self, x: np.ndarray, v: np.ndarray, dissipated: float) -> None:
+    def add(self, x: np.ndarray, v: np.ndarray, dissipated: float, mark: tuple) -> None:
         """Store the next sample (the numpy loop)."""
         k = self.k
         self.x[k], self.v[k], self.d[k] = x, v, dissipated
+        self.marks.append(mark)
         self.k = k + 1
 
     def energies(self, k: int) -> None:

@@ -10,6 +10,11 @@ appear above the bar at the moment they arise.
 ``on_estimate`` (optional) is called once, from the thread, with the estimated total
 seconds, as soon as the first ``estimate_after`` seconds of work give a rate: the run
 command prints it as "about 40 s (from the first 120 steps)".
+
+:func:`compile_notice` is how the command line announces a compilation by numba (set with
+:func:`mslab.jit.announce_with`): one line at once (what is compiled, that it happens
+once, where it is cached), then the clock on the progress line of the work in progress, or
+on a line of its own.
 """
 
 from __future__ import annotations
@@ -18,7 +23,8 @@ import shutil
 import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import Any, TextIO
 
 #: seconds of work before the bar appears
@@ -72,12 +78,16 @@ class Progress:
     on_estimate : callable, optional
         ``on_estimate(total_seconds, units_done)``, called once after ``estimate_after``
         seconds when at least one unit is done and more than a second of work remains.
+    clock : callable, optional
+        The clock in seconds (default ``time.perf_counter``; tests pass their own and call
+        :meth:`tick` instead of waiting).
     """
 
     def __init__(self, total: int | None = None, desc: str = "", unit: str = "step", *,
                  stream: TextIO | None = None, enabled: bool | None = None, delay: float = DELAY,
                  interval: float = INTERVAL, on_estimate: Callable[[float, int], None] | None = None,
-                 estimate_after: float = ESTIMATE_AFTER):
+                 estimate_after: float = ESTIMATE_AFTER, clock: Callable[[], float] = time.perf_counter):
+        self.clock = clock
         self.stream = sys.stderr if stream is None else stream
         self.enabled = is_terminal(self.stream) if enabled is None else bool(enabled)
         self.total, self.desc, self.unit = total, desc, unit
@@ -85,11 +95,13 @@ class Progress:
         self._first = None  # (time, count) after the first update: one-time costs end there
         self.delay, self.interval = delay, interval
         self.on_estimate, self.estimate_after = on_estimate, estimate_after
-        self.start = time.perf_counter()
+        self._estimated = on_estimate is None
+        self.start = clock()
         self.shown = False
         self._lock = threading.RLock()
         self._stop = threading.Event()
         self._thread = None
+        _open.append(self)
         if self.enabled or on_estimate is not None:
             self._thread = threading.Thread(target=self._watch, name="mslab-progress", daemon=True)
             self._thread.start()
@@ -99,7 +111,10 @@ class Progress:
         """``n`` more units done (cheap: called once per step by ``simulate``)."""
         self.n += n
         if self._first is None:
-            self._first = (time.perf_counter(), self.n)
+            self._first = (self.clock(), self.n)
+            from mslab.interrupts import phase
+
+            phase("stepping")  # (tests: a Ctrl-C while stepping)
 
     def describe(self, desc: str, total: int | None = None) -> None:
         """Change what the line says is being done (and, optionally, the total)."""
@@ -110,7 +125,7 @@ class Progress:
     @property
     def elapsed(self) -> float:
         """Seconds since the progress started."""
-        return time.perf_counter() - self.start
+        return self.clock() - self.start
 
     def estimate(self) -> float | None:
         """Estimated total seconds from the rate so far (None before the first unit).
@@ -120,7 +135,7 @@ class Progress:
         """
         if not self.total or self.n <= 0 or self._first is None:
             return None
-        now = time.perf_counter()
+        now = self.clock()
         t1, n1 = self._first
         if self.n <= n1 or now - t1 <= 0:
             return (now - self.start) * self.total / self.n
@@ -148,17 +163,20 @@ class Progress:
 
     # -- drawing ----------------------------------------------------------------------------------
     def _watch(self) -> None:
-        estimated = self.on_estimate is None
         while not self._stop.wait(self.interval):
-            elapsed = self.elapsed
-            if not estimated and elapsed >= self.estimate_after and self.measured() > 0:
-                estimated = True
-                total = self.estimate()
-                if total is not None and total - elapsed > 1.0:
-                    with self._lock:
-                        self.on_estimate(total, self.n)
-            if self.enabled and elapsed >= self.delay:
-                self._draw()
+            self.tick()
+
+    def tick(self) -> None:
+        """Do what the clock asks now: the estimate once it is due, the line once ``delay`` has passed."""
+        elapsed = self.elapsed
+        if not self._estimated and elapsed >= self.estimate_after and self.measured() > 0:
+            self._estimated = True
+            total = self.estimate()
+            if total is not None and total - elapsed > 1.0:
+                with self._lock:
+                    self.on_estimate(total, self.n)
+        if self.enabled and elapsed >= self.delay:
+            self._draw()
 
     def _draw(self) -> None:
         with self._lock:
@@ -188,6 +206,8 @@ class Progress:
     def close(self) -> None:
         """Stop the clock and remove the line (idempotent)."""
         self._stop.set()
+        if self in _open:
+            _open.remove(self)
         if self._thread is not None and self._thread is not threading.current_thread():
             self._thread.join()
             self._thread = None
@@ -200,6 +220,36 @@ class Progress:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+#: progress lines not closed yet, newest last (where a compilation notice goes)
+_open: list[Progress] = []
+
+
+@contextmanager
+def compile_notice(what: str, where: str, stream: TextIO | None = None) -> Iterator[None]:
+    """Announce a compilation while it runs (the command line's :func:`mslab.jit.announce_with`).
+
+    Prints ``mslab: compiling WHAT (once: cached in WHERE for later runs)`` at once, on
+    ``stream`` (default ``sys.stderr``), above the progress line of the work in progress
+    if there is one, whose description then says "compiling" until the compilation ends;
+    otherwise a line of its own counts the seconds on a terminal (nothing more on a pipe).
+    """
+    line = f"mslab: compiling {what} (once: cached in {where} for later runs) ..."
+    bar = _open[-1] if _open else None
+    if bar is not None:
+        bar.write(line)
+        desc = bar.desc
+        bar.describe(f"{desc} (compiling)" if desc else "compiling")
+        try:
+            yield
+        finally:
+            bar.describe(desc)
+        return
+    target = sys.stderr if stream is None else stream
+    print(line, file=target, flush=True)
+    with Progress(None, "compiling", stream=target):
+        yield
 
 
 def make_progress(progress: Any, total: int, desc: str, unit: str = "step") -> tuple[Progress | None, bool]:

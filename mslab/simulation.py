@@ -189,7 +189,7 @@ class Simulation:
         before, start = self.system.counters.snapshot(), time.perf_counter()
         state = self.integrator.start(self._stepped, self.scene.state0, self.dt)
         self._account(before, start)
-        self._samples.add(state.x, state.v, state.dissipated)
+        self._samples.add(state.x, state.v, state.dissipated, self._totals())
         self._check.start(float(self._samples.energy(1, copy=False).total[0]))
         if runner is None:
             self._loop = NumpyLoop(self.integrator, self._stepped, state, self.dt, self._limit)
@@ -201,15 +201,25 @@ class Simulation:
 
         self._begin(count)
         loop, samples, check = self._loop, self._samples, self._check
-        target = loop.step + count
+        target, first = loop.step + count, samples.k
         bar, own_bar = make_progress(progress, target - loop.step, self.integrator.name)
         before, start = self.system.counters.snapshot(), time.perf_counter()
+        base = self._totals()
+
+        def mark() -> tuple:  # the session's stepping time and counters now
+            now = self.system.counters.snapshot()
+            return (base[0] + time.perf_counter() - start, {k: base[1][k] + now[k] - before[k] for k in now})
+
         try:
             while loop.step < target:
-                done = loop.step
+                done, k_done = loop.step, samples.k
                 stop = min(target, check.next_due(done), done + loop.chunk)
                 samples.reserve(stop)
-                if not loop.run(stop, samples):
+                begun = mark() if isinstance(loop, CompiledLoop) else None
+                ok = loop.run(stop, samples, mark)
+                if begun is not None:
+                    _interpolate_marks(samples, k_done, done, loop.step, begun, mark())
+                if not ok:
                     raise FloatingPointError
                 if check.due(loop.step):
                     self._check_ledger()
@@ -234,6 +244,35 @@ class Simulation:
             self._account(before, start, bar if own_bar else None)
             raise SimulationInterrupted(self._trajectory(samples.k, False, current=False)) from None
         self._account(before, start, bar if own_bar else None)
+        self._ledger_over(first)
+
+    def _totals(self) -> tuple:
+        """Return the session's stepping time and counters so far (a sample's mark)."""
+        return self.stats.wall_time, {k: getattr(self.stats, k) for k in self.system.counters.snapshot()}
+
+    def _ledger_over(self, first: int) -> None:
+        """Stop at the first sample saved by this call whose ledger gained over ``energy_blowup``.
+
+        Checked on the saved samples when a call ends (a position blow-up later in the same
+        call comes first), the run reported as stopped at that sample.
+        """
+        samples, check = self._samples, self._check
+        if not check.on:
+            return
+        energy = samples.energy(samples.k, copy=False)
+        scale = check.scale if check.scale > 0 else energy.energy_scale()  # at rest: the run's own
+        j = check.over(energy.total, first, scale)
+        if j is None:
+            return
+        step = int(samples.steps[j])
+        self.stats.wall_time, counted = samples.marks[j]
+        for key, value in counted.items():
+            setattr(self.stats, key, value)
+        growth = (energy.total[j] - energy.total[0]) / scale
+        ledger = "K + U + D - W_ext" if self.system.driving else "K + U + D"
+        raise self._stop(InstabilityError, f"blew up by step {step}", f"the state stayed finite but the "
+                         f"energy ledger {ledger} grew by {growth:.3g} x the scene's energy scale"
+                         f"{hint(self.stable_dt)}", step=step, keep=j)
 
     def _check_ledger(self) -> None:
         loop, system = self._loop, self.system
@@ -255,13 +294,18 @@ class Simulation:
         if bar is not None:
             bar.close()
 
-    def _stop(self, kind: type, what: str, detail: str, step: int | None = None) -> Exception:
-        """Return the error that stops the session at ``step`` (default: the current one)."""
+    def _stop(self, kind: type, what: str, detail: str, step: int | None = None,
+              keep: int | None = None) -> Exception:
+        """Return the error that stops the session at ``step`` (default: the current one).
+
+        The trajectory keeps the samples before ``step`` (or the first ``keep``).
+        """
         step = self.step if step is None else step
         stats = self.stats
         stats.steps = step
         name, dt = self.integrator.name, self.dt
-        keep = int(np.searchsorted(self._samples.steps[: self._samples.k], step - 1, side="right"))
+        if keep is None:
+            keep = int(np.searchsorted(self._samples.steps[: self._samples.k], step - 1, side="right"))
         err = kind(f"{name} {what} (t = {step * dt:.6g}, dt = {dt:g}): {detail}", method=name, step=step,
                    t=step * dt, dt=dt, stable_dt=self.stable_dt, trajectory=self._trajectory(keep, False))
         self._failed = err
@@ -286,6 +330,17 @@ class Simulation:
                               self.scene.name)
         return Trajectory(t, samples.x[:k].copy(), samples.v[:k].copy(), samples.energy(k, copy=True), stats,
                           complete, self.scene.name)
+
+
+def _interpolate_marks(samples: Samples, k_done: int, done: int, step: int, begun: tuple,
+                       ended: tuple) -> None:
+    """Add the marks of the samples a compiled call saved (every compiled step costs the same)."""
+    (t0, c0), (t1, _) = begun, ended
+    per_step = (ended[1]["n_force"] - c0["n_force"]) // max(step - done, 1)
+    for i in range(k_done, samples.k):
+        part = (samples.steps[i] - done) / max(step - done, 1)
+        counted = {**c0, "n_force": c0["n_force"] + per_step * int(samples.steps[i] - done)}
+        samples.marks.append((t0 + part * (t1 - t0), counted))
 
 
 class _LedgerGrew(Exception):

@@ -13,6 +13,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from mslab.fast.runner import Stepper
     from mslab.integrators.base import Integrator
     from mslab.ledger import Samples
@@ -50,15 +52,15 @@ class NumpyLoop:
         """Return the current state (immutable: no copy needed)."""
         return self._state
 
-    def run(self, stop: int, samples: Samples) -> bool:
-        """Take steps up to ``stop``; False when step :attr:`step` blew up."""
+    def run(self, stop: int, samples: Samples, mark: Callable[[], tuple]) -> bool:
+        """Take steps up to ``stop``; False when step :attr:`step` blew up. ``mark()``: see Samples."""
         step, state, steps, k = self.step, self._state, samples.steps, samples.k
         while step < stop:
             state = self.integrator.step(self.system, state, self.dt)
             step += 1
             self._state, self.step = state, step
             if k < steps.size and steps[k] == step:
-                samples.add(state.x, state.v, state.dissipated)
+                samples.add(state.x, state.v, state.dissipated, mark())
                 k += 1
             if not (np.isfinite(state.x).all() and np.isfinite(state.v).all()
                     and np.abs(state.x).max() < self.limit):
@@ -94,8 +96,8 @@ class CompiledLoop:
         """Return a copy of the current state."""
         return self.runner.state()
 
-    def run(self, stop: int, samples: Samples) -> bool:
-        """Take steps up to ``stop``; False when step :attr:`step` blew up."""
+    def run(self, stop: int, samples: Samples, mark: Callable[[], tuple]) -> bool:
+        """Take steps up to ``stop``; False when step :attr:`step` blew up (marks: the session's)."""
         self.step, samples.k, ok = self.runner.run(self.dt, self.step, stop, samples.steps, samples.k,
                                                    samples.x, samples.v, samples.d, self.limit)
         return ok

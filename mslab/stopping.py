@@ -31,13 +31,15 @@ if TYPE_CHECKING:
 #: force evaluations between two ledger checks: a check (K and U in numpy, about one numpy
 #: force evaluation) then costs a few per cent of the compiled steps between checks
 CHECK_EVALS = 128
-#: growth that counts as an instability: the ledger gained more than the scene's energy scale
-#: (``LEVEL``), and its deviation rose at ``RISE_CHECKS`` checks in a row (or more) by ``GROWTH``
-#: times overall; a check whose deviation stays above ``KEEP`` times the rise's peak continues it
+#: a saturated instability: the ledger's deviation rose ``GROWTH`` times or more over at least
+#: ``RISE_CHECKS`` checks in a row (none below ``KEEP`` times the rise's peak) past ``LEVEL`` times
+#: the scene's energy scale, then stayed within ``PLATEAU`` times that level for at least as
+#: many steps as the rise took and ``RISE_CHECKS`` checks
 LEVEL = 1.0
 GROWTH = 100.0
 RISE_CHECKS = 4
 KEEP = 0.5
+PLATEAU = 4.0
 #: deviations below this fraction of the scale are round-off: they start no rise
 FLOOR = 1e-10
 
@@ -73,19 +75,21 @@ def check_stability(scene: Scene, integrator: Integrator, dt: float, stable_dt: 
 
 
 class LedgerCheck:
-    """The saturation detector: growth of the ledger total ``E = K + U + D - W_ext``.
+    """The saturation detector: a ledger ``E = K + U + D - W_ext`` that rose, then stayed up.
 
     Checked steps: 1, 2, 4, ... below :attr:`every`, then every :attr:`every` steps, and the
     declared end of a run — step numbers only, so any chunking checks the same steps. At each,
-    ``g = (E - E(0)) / scale``. The run is unstable there when ``g`` is NaN or above
-    ``energy_blowup`` (default 1e4), or when ``g`` **grew**: ``g > LEVEL`` (the ledger gained
-    the scene's whole energy scale, which no method does at a stable dt) after ``|g|`` rose
-    over at least ``RISE_CHECKS`` checks in a row (none falling below ``KEEP`` times the
-    rise's peak) by ``GROWTH`` times or more. A stable method's error reaches its size and
-    stays (symplectic) or drifts slowly; an instability grows geometrically, saturated or
-    not, until the positions or the nonlinearity bound it; an impact at a large dt is one
-    jump, not a rise, and meets only the ``energy_blowup`` bound. Only gains count:
-    implicit methods lose energy.
+    ``g = (E - E(0)) / scale``. The run is unstable there when the instability **saturated**:
+    ``|g|`` rose ``GROWTH`` times or more over ``RISE_CHECKS`` checks in a row or more
+    (geometric growth, what an unstable mode does) to a gain ``g > LEVEL`` (the scene's whole
+    energy scale, which no method gains at a stable dt), and then stopped rising: it stayed
+    within ``PLATEAU`` times that gain for as many steps as the rise took (and
+    ``RISE_CHECKS`` checks) — the nonlinearity bounded the amplitude (stiff springs swinging
+    through zero length, a contact bouncing), so the positions never blow up. A stable
+    method's error reaches its size and stays; an impact at a large dt is a jump, not a rise;
+    a growth that goes on (forward Euler on an undamped scene, which has no stable dt) is left
+    to the positions and to :meth:`over`, the bound ``energy_blowup`` (default 1e4) on the
+    saved samples' ledger. Only gains count.
 
     ``scale`` is :func:`mslab.ledger.initial_energy_scale`; a scene that starts at rest with
     nothing to release (scale 0: a wind drives it) uses the largest kinetic energy checked
@@ -97,9 +101,7 @@ class LedgerCheck:
         self.on = not math.isinf(energy_blowup)
         #: steps between two checks (after the doubling ones)
         self.every = max(1, CHECK_EVALS // max(1, n_stages))
-        self._e0 = 0.0
-        self._k_max = 0.0
-        self._rise = (0, 0.0, 0.0, 0)  # (first step, first |E - E0|, peak |E - E0|, checks)
+        self.start(0.0)
 
     def due(self, step: int) -> bool:
         """Return whether the ledger is checked after ``step``."""
@@ -118,7 +120,9 @@ class LedgerCheck:
 
     def start(self, total: float) -> None:
         """Record ``E(0)``."""
-        self._e0, self._k_max, self._rise = total, 0.0, (0, 0.0, 0.0, 0)
+        self._e0, self._k_max = total, 0.0
+        self._rise = (0, 0.0, 0.0, 0)  # (first step, first |E - E0|, peak |E - E0|, checks)
+        self._risen: tuple | None = None  # (step, E - E0, rise's first step and |E - E0|, checks since)
 
     def check(self, step: int, total: float, kinetic: float) -> str | None:
         """Record ``E(step)``; return why the run is unstable there, or None."""
@@ -126,10 +130,9 @@ class LedgerCheck:
         scale = self.scale if self.scale > 0 else self._k_max
         if not scale > 0:
             return None
+
         change = total - self._e0
         growth = change / scale
-        if not growth <= self.energy_blowup:  # NaN counts as over
-            return f"grew by {growth:.3g} x the scene's energy scale"
         size = abs(change) if abs(change) > FLOOR * scale else 0.0
         first, low, peak, count = self._rise
         if size > 0 and count and size >= KEEP * peak:
@@ -137,9 +140,28 @@ class LedgerCheck:
         else:
             self._rise = (step, size, size, 1 if size > 0 else 0)
         first, low, peak, count = self._rise
-        if growth > LEVEL and count >= RISE_CHECKS and change >= GROWTH * low:
-            return (f"grew by {growth:.3g} x the scene's energy scale, rising over the last {count} "
-                    f"checks, {change / low:.3g} x since step {first} (growth only an instability makes: "
-                    f"the positions stayed bounded, so its amplitude saturated, e.g. springs swinging "
-                    f"through zero length or a contact bouncing)")
+        risen = self._risen
+        if risen is not None and size <= PLATEAU * risen[1]:
+            at, level, since, low, n = self._risen = (*risen[:4], risen[4] + 1)
+            if step - at >= at - since and n >= RISE_CHECKS:
+                return (f"grew by {level / scale:.3g} x the scene's energy scale by step {at}, rising "
+                        f"{level / low:.3g} x since step {since}, and stayed there up to step {step} "
+                        f"(now {growth:.3g} x): an instability whose amplitude saturated, so the "
+                        f"positions stayed bounded (e.g. stiff springs swinging through zero length, a "
+                        f"contact bouncing)")
+        elif growth > LEVEL and count >= RISE_CHECKS and change >= GROWTH * low:
+            self._risen = (step, change, first, low, 0)  # risen; a plateau must follow
+        else:
+            self._risen = None
         return None
+
+    def over(self, total: np.ndarray, first: int, scale: float) -> int | None:
+        """Return the first saved sample from ``first`` whose ledger gained over ``energy_blowup * scale``.
+
+        ``total``: the ledger totals of the samples so far (NaN counts as over).
+        """
+        if not self.on:
+            return None
+        growth = (total[first:] - total[0]) / scale
+        bad = np.flatnonzero(~(growth <= self.energy_blowup))
+        return first + int(bad[0]) if bad.size else None

@@ -43,7 +43,7 @@ def test_derivatives_of_second_order_ode():
 
 
 @pytest.mark.parametrize("name, expected", [
-    ("euler", h**2 / 2 * f * f1),                                    # y''/2 h^2, seed eq. 6
+    ("euler", h**2 / 2 * f * f1),                                    # y''/2 h^2, eq. 6 of the lecture notes
     ("implicit_euler", -h**2 / 2 * f * f1),
     ("implicit_euler_fp", -h**2 / 2 * f * f1),
     # Heun: y + h/2 (f + f(y + h f)) = y + h f + h^2/2 f'f + h^3/4 f'' f^2 + ...
@@ -74,7 +74,7 @@ def test_local_error_velocity_verlet_family(name):
 
 
 def test_verlet_two_step_residual():
-    # seed eqs. 21-23: the odd terms cancel, h^4/12 x'''' remains
+    # eqs. 21-23 of the lecture notes: the odd terms cancel, h^4/12 x'''' remains
     assert same(derive.local_error("verlet"), h**4 / 12 * (a2 * v**2 + a1 * a))
     assert derive.analyse("verlet").problem.startswith("two-step")
 
@@ -100,7 +100,7 @@ def test_too_high_order_is_reported():
 
 
 @pytest.mark.parametrize("name, expected", [
-    ("euler", 1 + z),                                               # seed eq. 32
+    ("euler", 1 + z),                                               # eq. 32 of the lecture notes
     ("heun", 1 + z + z**2 / 2),
     ("rk4", 1 + z + z**2 / 2 + z**3 / 6 + z**4 / 24),
     ("implicit_euler", 1 / (1 - z)),
@@ -299,7 +299,7 @@ def yoshida6():
 
 
 SPLITTINGS = {
-    # velocity first (seed eqs. 9-10): the first drift is empty, v += h a(x), x += h v
+    # velocity first (lecture notes, eqs. 9-10): the first drift is empty, v += h a(x), x += h v
     "symplectic_euler": (([0, 1], [1]), 1),
     "symplectic_euler_x": (([1, 0], [1]), 1),          # position first, eqs. 7-8
     "stormer_verlet": ((["1/2", "1/2"], [1]), 2),      # drift-kick-drift
@@ -479,8 +479,11 @@ def test_nodepy_own_order_as_second_opinion(nodepy_methods):
         assert ours == theirs, key
 
 
-def test_order_of_13_stage_tableaux_is_fast(nodepy_methods):
-    """Worst cases: every condition through order 9 evaluated on dense 13 x 13 tableaux."""
+def test_order_of_13_stage_tableaux(nodepy_methods):
+    """Worst cases: every condition through order 9 evaluated on dense 13 x 13 tableaux.
+
+    How long it takes is printed, not asserted (no test depends on timing, issue 18).
+    """
     _, library = nodepy_methods
     pd8 = library["PD8"]                               # Prince-Dormand 8(7), 13 stages, floats
     start = time.perf_counter()
@@ -498,4 +501,3 @@ def test_order_of_13_stage_tableaux_is_fast(nodepy_methods):
         derive.order(rk_method(A, b, "collocation13", "implicit_rk"))
     exact_time = time.perf_counter() - start
     print(f"13 stages: PD8 floats {float_time:.3f} s, dense exact collocation {exact_time:.3f} s")
-    assert float_time < 10 and exact_time < 10

@@ -262,7 +262,7 @@ def _in_fresh_process(code: str, env: dict | None = None) -> str:
     import subprocess
     import sys
 
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=900,
                          env={**os.environ, **(env or {})})
     assert out.returncode == 0, out.stderr
     return out.stdout.strip()

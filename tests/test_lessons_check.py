@@ -53,7 +53,7 @@ def test_numbers_and_verdicts_are_listed(tmp_path, sentence):
 
 
 @pytest.mark.parametrize("sentence", [
-    "Newton's law (seed eq. 3) and the spring force (eqs. 1–2) from the lecture.",
+    "Newton's law (lecture notes, eq. 3) and the spring force (eqs. 1–2) from the lecture.",
     "As lesson 04 and section 2.3 showed, see §2.8 and exercise 02.",
     "We step with `rk4` and rk4 in 2D and 3D.",
     "The amplification factor is $R(z) = 1 + z + z^2/2$, and $$|R(2i)| = 1.$$",

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 
 import numpy as np
@@ -84,16 +85,9 @@ def test_two_step_methods_keep_their_memory_across_calls(method):
     restarted = scene()
     for _ in range(n // 10):
         tr = mslab.simulate(restarted, method, dt=dt, t_end=10 * dt)
-        restarted = restarted.with_state(mslab.State(tr.x[-1], tr.v[-1])) \
-            if hasattr(restarted, "with_state") else _replace_state(restarted, tr)
+        restarted = dataclasses.replace(restarted, state0=mslab.State(tr.x[-1], tr.v[-1]))
     if method == "verlet":  # the start-up step and velocity estimate of every restart
         assert not np.array_equal(restarted.state0.x, whole.x[-1])
-
-
-def _replace_state(scene, tr):
-    import dataclasses
-
-    return dataclasses.replace(scene, state0=mslab.State(tr.x[-1], tr.v[-1]))
 
 
 def test_advance_by_time_and_to_the_end():
@@ -152,8 +146,6 @@ def test_auto_backend_is_decided_once_from_the_expected_work():
 
 def stiff_pairs():
     """A 1D chain of unit masses, springs k = 1, 1e6, 1, 1e6; the first stiff spring starts stretched."""
-    import dataclasses
-
     b = mslab.SceneBuilder(1)
     ps = [b.add_particle([float(i)], mass=1.0, pinned=i == 0) for i in range(5)]
     for (p, q), k in zip(itertools.pairwise(ps), (1.0, 1e6, 1.0, 1e6), strict=True):

@@ -1,4 +1,4 @@
-"""Exercise 01: Hooke spring forces and their Jacobian (seed eqs. 1-2)."""
+"""Exercise 01: Hooke spring forces and their Jacobian (lecture notes, eqs. 1-2)."""
 
 import numpy as np
 

@@ -1,4 +1,4 @@
-"""Exercise 02: forward Euler and the two symplectic Euler steps (seed eqs. 6-10)."""
+"""Exercise 02: forward Euler and the two symplectic Euler steps (lecture notes, eqs. 6-10)."""
 
 
 def forward_euler_step(x, v, accel, dt):
@@ -25,7 +25,7 @@ def forward_euler_step(x, v, accel, dt):
 
 
 def symplectic_euler_step(x, v, accel, dt):
-    """Symplectic Euler, velocity first (seed eqs. 9-10).
+    """Symplectic Euler, velocity first (lecture notes, eqs. 9-10).
 
     The velocity is updated with the acceleration at the old state; the position then
     moves with the *new* velocity. Returns ``(x_new, v_new)``, shapes as ``x``.
@@ -37,7 +37,7 @@ def symplectic_euler_step(x, v, accel, dt):
 
 
 def symplectic_euler_x_step(x, v, accel, dt):
-    """Symplectic Euler, position first (seed eqs. 7-8).
+    """Symplectic Euler, position first (lecture notes, eqs. 7-8).
 
     The position moves with the old velocity; the velocity is then updated with the
     acceleration at the *new* position and the old velocity. Returns ``(x_new, v_new)``.

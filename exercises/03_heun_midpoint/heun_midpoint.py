@@ -1,4 +1,4 @@
-"""Exercise 03: Heun's method and the explicit midpoint method (seed eqs. 11-15)."""
+"""Exercise 03: Heun's method and the explicit midpoint method (lecture notes, eqs. 11-15)."""
 
 
 def heun_step(x, v, accel, dt):

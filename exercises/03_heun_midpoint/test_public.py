@@ -18,7 +18,7 @@ def pair(out, shape):
 
 @pytest.mark.points(2)
 def test_heun_on_a_swinging_spring_by_hand(student):
-    # seed eqs. 11-12 with the trusted acceleration. The spring swings sideways, so the
+    # eqs. 11-12 of the lecture notes with the trusted acceleration. The spring swings sideways, so the
     # problem is nonlinear: on a linear one (any oscillator along its axis) Heun and the
     # midpoint method take exactly the same step and this test could not tell them apart.
     prob = problem("oscillator", stiffness=1.0, displacement=0.5, dim=2)

@@ -1,4 +1,4 @@
-"""Exercise 04: an explicit Runge-Kutta stepper driven by a Butcher tableau; RK4 (seed eqs. 16-20)."""
+"""Exercise 04: a Runge-Kutta stepper driven by a Butcher tableau; RK4 (lecture notes, eqs. 16-20)."""
 
 import numpy as np
 

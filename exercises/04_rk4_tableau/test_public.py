@@ -16,7 +16,7 @@ def test_rk4_tableau_reproduces_the_stages_of_the_course(student):
     assert isinstance(out, tuple | list) and len(out) == 3, "return (A, b, c)"
     A, b, c = out
     check_shape(A, (4, 4), what="A")
-    # seed eqs. 17-20: each stage starts from y_n plus h/2, h/2, h times the previous slope
+    # eqs. 17-20 of the lecture notes: each stage starts from y_n plus h/2, h/2, h times the previous slope
     expected = np.zeros((4, 4))
     expected[1, 0], expected[2, 1], expected[3, 2] = 0.5, 0.5, 1.0
     check_array(A, expected, what="A")

@@ -1,4 +1,4 @@
-"""Exercise 05: position Verlet and leapfrog, with their start-up steps (seed eqs. 21-26).
+"""Exercise 05: position Verlet and leapfrog, with their start-up steps (lecture notes, eqs. 21-26).
 
 Forces here depend on positions only: call ``accel(x)``.
 """
@@ -26,7 +26,7 @@ def verlet_start(x0, v0, accel, dt):
 
 
 def verlet_step(x, x_prev, accel, dt):
-    """One position-Verlet step: ``x_{n+1}`` from ``x_n`` and ``x_{n-1}`` (seed eq. 23).
+    """One position-Verlet step: ``x_{n+1}`` from ``x_n`` and ``x_{n-1}`` (lecture notes, eq. 23).
 
     Returns
     -------

@@ -1,10 +1,10 @@
-"""Exercise 06: implicit Euler solved by fixed-point iteration and by Newton's method (seed eqs. 27-28)."""
+"""Exercise 06: implicit Euler by fixed-point iteration and by Newton's method (lecture notes, eqs. 27-28)."""
 
 import numpy as np
 
 
 def implicit_euler_fixed_point(x, v, accel, dt, tol=1e-10, max_iter=100):
-    """One implicit Euler step, solved by fixed-point iteration (seed eq. 28).
+    """One implicit Euler step, solved by fixed-point iteration (lecture notes, eq. 28).
 
     Unknowns ``(X, V)`` = the new state with ``X = x + dt V`` and ``V = v + dt accel(X, V)``.
     Start from ``(X, V) = (x, v)`` and repeat ``(X, V) <- (x + dt V, v + dt accel(X, V))``

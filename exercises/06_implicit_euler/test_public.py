@@ -24,7 +24,7 @@ def triple(out, shape):
 
 
 def check_solves_implicit_euler(prob, x, v, x_new, v_new, dt, tol):
-    # the defining equations of seed eq. 27, checked with the trusted acceleration
+    # the defining equations of eq. 27 of the lecture notes, checked with the trusted acceleration
     check_array(x_new - x - dt * v_new, np.zeros_like(x), atol=tol, what="x_new - x - dt v_new")
     check_array(v_new - v - dt * prob(x_new, v_new), np.zeros_like(v), atol=tol,
                 what="v_new - v - dt a(x_new, v_new)")

@@ -1,4 +1,4 @@
-"""Exercise 07: the stability function of a Butcher tableau and its real interval (seed eqs. 29-33)."""
+"""Exercise 07: the stability function of a tableau and its real interval (lecture notes, eqs. 29-33)."""
 
 import numpy as np
 

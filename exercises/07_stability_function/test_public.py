@@ -14,7 +14,7 @@ MODULE = "stability_function"
 
 @pytest.mark.points(2)
 def test_forward_euler_is_one_plus_z(student):
-    # seed eq. 32: one Euler step multiplies y by (1 + h lam)
+    # eq. 32 of the lecture notes: one Euler step multiplies y by (1 + h lam)
     euler = get_method("euler")
     z = np.array([-1.5 + 0.5j, 0.3j, -2.0, 0.25])
     check_array(student.stability_function(euler.A, euler.b, z), 1.0 + z, what="R(z)")

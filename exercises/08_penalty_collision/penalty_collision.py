@@ -1,4 +1,4 @@
-"""Exercise 08: a penalty force against a plane, with regularised Coulomb friction (seed section 2.7)."""
+"""Exercise 08: a penalty force against a plane, with regularised Coulomb friction (lecture notes, §2.7)."""
 
 import numpy as np
 

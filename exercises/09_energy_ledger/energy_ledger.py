@@ -1,4 +1,4 @@
-"""Exercise 09: the energy ledger K + U + D and the drift of a method (lesson 06; seed eqs. 1, 23, 27)."""
+"""Exercise 09: the ledger K + U + D and a method's drift (lesson 06; lecture notes, eqs. 1, 23, 27)."""
 
 import numpy as np
 

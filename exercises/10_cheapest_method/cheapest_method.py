@@ -1,4 +1,4 @@
-"""Exercise 10: choosing the cheapest method for an error target (lesson 07; seed eqs. 16-20)."""
+"""Exercise 10: the cheapest method for an error target (lesson 07; lecture notes, eqs. 16-20)."""
 
 import math
 

@@ -1,4 +1,4 @@
-"""Exercise 11: structural, shear and bend springs and the deformations they resist (lesson 09; seed §2.3)."""
+"""Exercise 11: structural, shear and bend springs and what they resist (lesson 09; lecture notes, §2.3)."""
 
 import numpy as np
 

@@ -1,4 +1,4 @@
-"""Exercise 12: a third-order Runge-Kutta method of your own (lesson 10; seed eqs. 16-20)."""
+"""Exercise 12: a third-order Runge-Kutta method of your own (lesson 10; eqs. 16-20 of the lecture notes)."""
 
 import numpy as np
 

@@ -46,6 +46,7 @@ from mslab.commands.common import (
     say,
 )
 from mslab.commands.run_checks import animation_problem, predicted_dt, prediction_line
+from mslab.interrupts import phase
 
 if TYPE_CHECKING:
     import argparse
@@ -173,6 +174,7 @@ def save_outputs(folder: Path, traj: Trajectory, scene: Scene, animate: str | No
     name = scene.name
     files = {} if files is None else files
     files["data"] = save_npz(folder / f"{name}.npz", traj, scene)
+    phase("saving")  # (tests: a Ctrl-C while saving)
     if len(traj.t) == 0:
         return files
     fig, ax = plt.subplots(figsize=(7, 4))

@@ -4,7 +4,7 @@ Every method is read from its coefficients (the very ones that step): Runge-Kutt
 ``A, b`` (explicit or implicit) and drift/kick splittings. Orders come from the rooted-tree
 order conditions, exact for exact coefficients (``Fraction``, sympy numbers, strings such
 as ``"19372/6561"``) and up to round-off for floats; local errors from Taylor series on the
-scalar model problems ``y' = f(y)`` and ``x'' = a(x)`` (seed eqs. 4-5). Methods without
+scalar model problems ``y' = f(y)`` and ``x'' = a(x)`` (lecture notes, eqs. 4-5). Methods without
 coefficients are run symbolically through their own ``step``.
 
 Modules: :mod:`~mslab.derive.series` (Taylor series), :mod:`~mslab.derive.trees` and

@@ -179,18 +179,18 @@ def _analyse(r: Reading, max_order: int) -> Derivation:
 def local_error(method: str | Integrator, max_order: int = 5) -> sp.Expr:
     """Leading term of the local error ``y(t + h) - y_{n+1}`` (see :func:`analyse`).
 
-    Forward Euler: ``h**2*f*f'/2`` (the ``y''/2 h^2`` that seed eq. 6 drops).
+    Forward Euler: ``h**2*f*f'/2`` (the ``y''/2 h^2`` that eq. 6 of the lecture notes drops).
     Second-order problem: ``Matrix([x term, v term])``; Verlet: the ``h^4`` residual
-    of its two-step formula (seed eq. 23).
+    of its two-step formula (lecture notes, eq. 23).
     """
     return analyse(method, max_order).leading
 
 
 def stability_function(method: str | Integrator) -> sp.Expr:
-    """Amplification factor ``R(z)``, ``y_{n+1} = R(z) y_n`` on ``y' = lambda y`` (seed eq. 29).
+    """Amplification factor ``R(z)``, ``y_{n+1} = R(z) y_n`` on ``y' = lambda y`` (lecture notes, eq. 29).
 
     ``R(z) = det(I - z A + z 1 b^T) / det(I - z A)`` from the Butcher tableau, explicit or
-    implicit, exact when the coefficients are: ``1 + z`` for forward Euler (seed eq. 32),
+    implicit, exact when the coefficients are: ``1 + z`` for forward Euler (lecture notes, eq. 32),
     ``1/(1 - z)`` for implicit Euler. ``z`` is :data:`mslab.derive.z`.
 
     Raises

@@ -1,4 +1,4 @@
-"""Power series in the step ``h``: the exact solutions' Taylor series (seed eqs. 4-5).
+"""Power series in the step ``h``: the exact solutions' Taylor series (lecture notes, eqs. 4-5).
 
 Two model problems, both autonomous and scalar:
 
@@ -98,7 +98,7 @@ def derivatives(n: int, problem: str = "first") -> list:
 
 
 def taylor(n: int, problem: str = "first", shift: sp.Expr = h) -> sp.Expr:
-    """Return the exact solution at ``t + shift`` as a Taylor series through ``h^n`` (seed eq. 5).
+    """Return the exact solution at ``t + shift`` as a Taylor series through ``h^n`` (lecture notes, eq. 5).
 
     Parameters
     ----------
@@ -109,7 +109,7 @@ def taylor(n: int, problem: str = "first", shift: sp.Expr = h) -> sp.Expr:
         for ``y(t)``). ``"second"``: the position ``x(t + shift)`` of ``x'' = a(x)`` in
         ``x, v, a, a', ...`` at t; ``"velocity"``: ``v(t + shift)`` of the same problem.
     shift : sympy expression
-        The time offset, a multiple of ``h`` (``-h`` for the backward series, seed eq. 22).
+        The time offset, a multiple of ``h`` (``-h`` for the backward series, eq. 22 of the lecture notes).
 
     Returns
     -------

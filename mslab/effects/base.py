@@ -1,6 +1,6 @@
 """The Effect protocol and helpers shared by all force terms.
 
-An *effect* is one force term of Newton's second law (seed eq. 3), defined in one module of
+An *effect* is one force term of Newton's second law (lecture notes, eq. 3), defined in one module of
 ``mslab/effects/`` that owns
 
 * ``force(x, v)`` — the force on every particle, shape ``(n_particles, dim)``;
@@ -93,7 +93,7 @@ class Body(Protocol):
 class HookeSprings(NamedTuple):
     """Hooke springs between particle pairs, as an effect declares them (:meth:`Effect.hooke_springs`).
 
-    For the pair ``(i[q], j[q])``, ``f_i = k (L - l) u = -f_j`` (seed eq. 2); shapes (n_springs,).
+    For the pair ``(i[q], j[q])``, ``f_i = k (L - l) u = -f_j`` (lecture notes, eq. 2); shapes (n_springs,).
     ``kind``: a label per spring (``structural``, ``shear``, ``bend`` ...).
     """
 

@@ -1,4 +1,4 @@
-"""Penalty colliders: a plane and a sphere, with optional friction (seed section 2.7).
+"""Penalty colliders: a plane and a sphere, with optional friction (lecture notes, §2.7).
 
 A particle that penetrates a collider by a depth ``p > 0`` feels a spring pushing it
 back along the surface normal ``n``: ``f_n = k p n`` with potential ``U = k p^2 / 2``.

@@ -1,4 +1,4 @@
-"""Viscous damping (air drag): ``f_i = -gamma v_i`` (seed section 2.5, a = (f - γv)/m)."""
+"""Viscous damping (air drag): ``f_i = -gamma v_i`` (§2.5 of the lecture notes, a = (f - γv)/m)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Gravity: a constant acceleration g on every particle (seed section 2.1).
+"""Gravity: a constant acceleration g on every particle (lecture notes, §2.1).
 
 "Down" has one rule everywhere: -y in 2D, -z in 3D (-x in 1D). A number ``g`` (TOML
 ``g = 9.81`` or ``SceneBuilder.add_gravity(9.81)``) pulls down with that strength; a

@@ -1,4 +1,4 @@
-"""Hooke springs with optional damping along the spring (seed eqs. 1-2).
+"""Hooke springs with optional damping along the spring (lecture notes, eqs. 1-2).
 
 The numpy methods of :class:`Springs` are the reference; the compiled loops of the same
 equations are in :mod:`mslab.effects.spring_kernels` (numba-compatible style). Spring sets are
@@ -55,7 +55,7 @@ class Springs(Effect):
 
     For the spring ``q`` joining ``i`` and ``j`` with ``d = x_i - x_j``, current length
     ``l = |d|``, unit direction ``u = d / l``, rest length ``L`` and stiffness ``k``
-    (seed eq. 2), plus damping ``c`` acting on the stretch rate ``u . (v_i - v_j)``::
+    (lecture notes, eq. 2), plus damping ``c`` acting on the stretch rate ``u . (v_i - v_j)``::
 
         f_i = k (L - l) u - c (u . (v_i - v_j)) u,      f_j = -f_i
 
@@ -182,7 +182,7 @@ class Springs(Effect):
 
     def compiled_jacobians(self, x: np.ndarray, v: np.ndarray) -> tuple[sp.csr_matrix, sp.csr_matrix | None]:
         """:meth:`jacobians` through :func:`spring_jacobian_kernel` (compiled by numba on first use)."""
-        from mslab.fast.jit import compiled
+        from mslab.jit import compiled
 
         dim = x.shape[1]
         m = self.i.shape[0]

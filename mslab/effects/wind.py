@@ -1,6 +1,6 @@
 """Wind: viscous drag relative to a moving air mass, ``f_i = -c (v_i - w)``.
 
-Air drag of the course (seed section 2.5, ``f = -gamma v``) measured against air that moves
+Air drag of the course (§2.5 of the lecture notes, ``f = -gamma v``) measured against air that moves
 with a constant velocity ``w`` instead of still air. Its power splits into two parts::
 
     f . v = -c |v|^2 + c w . v

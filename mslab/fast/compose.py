@@ -1,20 +1,20 @@
-"""Compiled loops for one combination of effect kernels: a generated module, cached by numba.
+"""Compiled loops for one combination of effect kernels: a generated module, compiled by ``mslab.jit``.
 
 Each effect with a compiled kernel defines it once, as a plain function in its own module
 (``kernel(x, v, f, *params) -> power``, see :mod:`mslab.effects.base`). For a scene whose
 effects all have kernels, :func:`module_for` writes a module that is the text of the
-template :mod:`mslab.fast.loops` followed by::
+template :mod:`mslab.fast.loops` (plain functions) followed by::
 
-    from mslab.effects.spring_kernels import spring_kernel as _py_k0
-    _k0 = njit(cache=True)(_py_k0)
+    from mslab.effects.spring_kernels import spring_kernel as _py_k0  # source <hash>
     ...
-    @njit(cache=True)
     def scene_forces(x, v, f, params):
-        power = _k0(x, v, f, *params[0])
-        power += _k1(x, v, f, *params[1])
+        power = 0.0
+        power += _k0(x, v, f, *params[0])
         return power
 
-so numba compiles the loops with the kernels inlined and caches them on disk.
+then imports it and replaces each of its functions by :func:`mslab.jit.compiled` of it
+(:func:`compile_module`; the kernels ``_k0, _k1, ...`` too), so numba compiles the loops
+with the kernels inlined, on first use, and caches them on disk: the one way mslab compiles.
 
 Decision (measured, see ``benchmarks/RESULTS.md``): numba does not cache functions that take
 other compiled functions as arguments (every process recompiled the loops: a cache miss
@@ -22,7 +22,7 @@ each time), so the composition is a generated source file. Its name is a hash of
 text, which includes the sources of the kernels it calls: editing a kernel or the template
 gives a new module and a fresh compile (numba alone would not notice an edited callee).
 Files go to ``$MSLAB_CACHE_DIR`` or ``$XDG_CACHE_HOME/mslab`` (``~/.cache/mslab``), and
-numba's cache to a ``__pycache__`` beside them.
+numba's cache to a ``__pycache__`` beside them (or ``$NUMBA_CACHE_DIR``).
 """
 
 from __future__ import annotations
@@ -74,14 +74,37 @@ def source(kernels: Sequence[Callable]) -> str:
         body = inspect.getsource(kern)
         digest = hashlib.sha256(body.encode()).hexdigest()[:16]
         lines.append(f"from {kern.__module__} import {kern.__name__} as _py_k{n}  # source {digest}")
-    lines.append("")
-    lines += [f"_k{n} = njit(cache=True)(_py_k{n})" for n in range(len(kernels))]
-    lines += ["", "", "@njit(cache=True)", "def scene_forces(x, v, f, params):",
+    lines += ["", "", "def scene_forces(x, v, f, params):",
               '    """Sum of the effects\' kernels: ``f += sum_e f_e``; returns the dissipated power."""',
               "    power = 0.0"]
     lines += [f"    power += _k{n}(x, v, f, *params[{n}])" for n in range(len(kernels))]
     lines += ["    return power", ""]
     return "\n".join(lines)
+
+
+#: what the announcement of a compilation calls the template's functions
+WHAT = {"rhs": "the force loop", "run_explicit_rk": "the explicit Runge-Kutta loop",
+        "run_splitting": "the splitting loop", "run_two_step": "the Verlet/leapfrog loop",
+        "scene_forces": "the sum of the forces"}
+
+
+def compile_module(module: ModuleType, kernels: Sequence[Callable]) -> None:
+    """Replace the functions of a generated module by :func:`~mslab.jit.compiled` of them.
+
+    The template's functions get ``error_model="numpy"`` (no zero-division checks: numba
+    vectorises the passes over particles); ``scene_forces`` and the kernels numba's defaults.
+    Nothing compiles yet: each function compiles, or loads from the cache, on its first call.
+    """
+    from mslab.jit import compiled
+
+    names = ", ".join(k.__name__.removesuffix("_kernel") for k in kernels) or "no"
+    for n, kern in enumerate(kernels):
+        setattr(module, f"_k{n}", compiled(kern, f"the {kern.__name__}"))
+    for name, value in list(vars(module).items()):
+        if inspect.isfunction(value) and value.__module__ == module.__name__:
+            what = f"{WHAT.get(name, 'a helper of the stepping loops')} over the {names} kernels"
+            options = {} if name == "scene_forces" else {"error_model": "numpy"}
+            setattr(module, name, compiled(value, what, **options))
 
 
 def _key(kernels: Sequence[Callable]) -> tuple:
@@ -138,5 +161,6 @@ def module_for(kernels: Sequence[Callable]) -> ModuleType:
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module
     spec.loader.exec_module(module)
+    compile_module(module, kernels)
     _modules[key] = module
     return module

@@ -1,10 +1,11 @@
 """The compiled stepping loops: one per method family, generic over the scene's effects.
 
-This file is a *template*: :mod:`mslab.fast.compose` copies its text into a module generated
-for one combination of effect kernels and appends the definition of ``scene_forces`` (the
-sum of the effects' own ``kernel`` functions), so numba compiles, inlines and caches the
-loops for that combination (``cache=True``: a later process loads them in a fraction of a
-second). Nothing here knows any effect. Arrays are float64, C-contiguous: positions ``x``
+This file is a *template* of plain functions: :mod:`mslab.fast.compose` copies its text into a
+module generated for one combination of effect kernels, appends the definition of
+``scene_forces`` (the sum of the effects' own ``kernel`` functions) and compiles every
+function of it with :func:`mslab.jit.compiled` (``error_model="numpy"``), so numba
+inlines the kernels into the loops and caches them (a later process loads them in a
+fraction of a second). Nothing here knows any effect. Arrays are float64, C-contiguous: positions ``x``
 and velocities ``v`` of shape ``(n_particles, dim)``.
 
 The loops are lean (issue 14): forces accumulate into a scratch array ``f`` that holds the
@@ -26,7 +27,6 @@ the number of force evaluations made; states whose step is in ``saved[k:]`` go t
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 OK = 0
 BLOWUP = 1
@@ -34,7 +34,6 @@ VERLET = 2
 LEAPFROG = 3
 
 
-@njit(cache=True, error_model="numpy")
 def rhs(x, v, a, w, f0, params):
     """Acceleration ``a = M^-1 (f0 + sum_e f_e(x, v))`` into ``a``; returns the dissipated power."""
     af = a.reshape(a.size)
@@ -47,20 +46,17 @@ def rhs(x, v, a, w, f0, params):
     return power
 
 
-@njit(cache=True, error_model="numpy")
 def _save(x, v, dissipated, xs, vs, ds, k):
     xs[k] = x
     vs[k] = v
     ds[k] = dissipated
 
 
-@njit(cache=True, error_model="numpy")
 def _drift(xf, vf, hd):
     for e in range(xf.size):
         xf[e] = xf[e] + hd * vf[e]
 
 
-@njit(cache=True, error_model="numpy")
 def _kick(xf, vf, ff, f0f, w, h, hd, limit):
     """Do ``a = w f; f = f0; v += h a; x += hd v`` in one pass; return the count of bad entries."""
     count = 0
@@ -75,7 +71,6 @@ def _kick(xf, vf, ff, f0f, w, h, hd, limit):
     return count
 
 
-@njit(cache=True, error_model="numpy")
 def _kick_keep(xf, vf, ff, f0f, w, h, hd, mem_a, limit):
     """:func:`_kick` that also keeps ``a`` in ``mem_a`` (first same as last)."""
     count = 0
@@ -91,7 +86,6 @@ def _kick_keep(xf, vf, ff, f0f, w, h, hd, mem_a, limit):
     return count
 
 
-@njit(cache=True, error_model="numpy")
 def _kick_with(xf, vf, af, h, hd, limit):
     """``v += h a; x += hd v`` with a known acceleration; returns the count of bad entries."""
     count = 0
@@ -104,10 +98,9 @@ def _kick_with(xf, vf, af, h, hd, limit):
     return count
 
 
-@njit(cache=True, error_model="numpy")
 def run_explicit_rk(x, v, dissipated, A, b, dt, step, n_steps, saved, k, xs, vs, ds, limit,
                     w, f0, params):
-    """Take steps of an explicit Runge-Kutta tableau (seed eqs. 16-20), ``y = (x, v)``, ``F = (v, a)``.
+    """Take steps of an explicit Runge-Kutta tableau (notes, eqs. 16-20), ``y = (x, v)``, ``F = (v, a)``.
 
     ``Y_s = y_n + h sum_{r<s} A_sr K_r``, ``y_{n+1} = y_n + h sum_s b_s K_s``; the dissipated
     work gets the weights ``b`` too. ``kx[s]`` is the stage velocity, ``kv[s]`` its acceleration.
@@ -169,7 +162,6 @@ def run_explicit_rk(x, v, dissipated, A, b, dt, step, n_steps, saved, k, xs, vs,
     return step, k, dissipated, OK, n_force
 
 
-@njit(cache=True, error_model="numpy")
 def run_splitting(x, v, dissipated, drift, kick, reuse, kA, kb, mem_a, mem_p,
                   dt, step, n_steps, saved, k, xs, vs, ds, limit, w, f0, params):
     """Take steps of a drift/kick splitting (``mslab/integrators/splitting.py``).
@@ -261,10 +253,9 @@ def run_splitting(x, v, dissipated, drift, kick, reuse, kA, kb, mem_a, mem_p,
     return step, k, dissipated, OK, n_force
 
 
-@njit(cache=True, error_model="numpy")
 def run_two_step(method, x, v, dissipated, mem_x, mem_a, mem_p, dt, step, n_steps, saved, k,
                  xs, vs, ds, limit, velocity_dependent, w, f0, params):
-    """Take steps of Verlet and leapfrog (``mslab/integrators/two_step.py``, seed eqs. 21-26).
+    """Take steps of Verlet and leapfrog (``mslab/integrators/two_step.py``, eqs. 21-26 of the lecture notes).
 
     One force evaluation ``a = a(X, V)`` per step:
 

@@ -1,7 +1,7 @@
 """The Integrator protocol and the registry of methods by name.
 
 An integrator advances a :class:`~mslab.state.State` of the second-order system
-``x' = v, v' = a(x, v)`` (seed eq. 3) by one fixed step ``dt``. It holds nothing about
+``x' = v, v' = a(x, v)`` (lecture notes, eq. 3) by one fixed step ``dt``. It holds nothing about
 the scene: ``step(system, state, dt)`` returns a new State and mutates nothing it was
 given. Methods with memory (velocity Verlet's reused acceleration, Verlet, leapfrog) keep
 what they need between steps in ``State.memory``, created by ``start``.

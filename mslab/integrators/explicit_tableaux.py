@@ -9,19 +9,19 @@ half, sixth, third = Fr(1, 2), Fr(1, 6), Fr(1, 3)
 
 euler = register(ExplicitRK(
     [[0]], [1], name="euler", order=1,
-    doc="""Forward (explicit) Euler, seed eq. 6.
+    doc="""Forward (explicit) Euler, eq. 6 of the lecture notes.
 
     ``x_{n+1} = x_n + h v_n``,  ``v_{n+1} = v_n + h a(x_n, v_n)``.
 
     Order 1 (Taylor series cut after the first derivative, local error O(h^2)); one force
     evaluation per step. Stability: ``R(z) = 1 + z``, stable for ``-2 < h lambda < 0`` on
-    real lambda (seed eq. 32) and *never* for an undamped oscillator (|R(i w h)| > 1):
+    real lambda (lecture notes, eq. 32) and *never* for an undamped oscillator (|R(i w h)| > 1):
     its energy grows every step. Tableau: ``A = [[0]], b = [1]``.
     """))
 
 heun = register(ExplicitRK(
     [[0, 0], [1, 0]], [half, half], name="heun", order=2,
-    doc="""Heun's method (explicit trapezoidal rule, improved Euler), seed eqs. 11-15.
+    doc="""Heun's method (explicit trapezoidal rule, improved Euler), eqs. 11-15 of the lecture notes.
 
     Predictor ``~y = y_n + h F(y_n)`` (an Euler step), then
     ``y_{n+1} = y_n + h/2 (F(y_n) + F(~y))``: the average of the slopes at both ends.
@@ -32,7 +32,7 @@ heun = register(ExplicitRK(
 
 midpoint = register(ExplicitRK(
     [[0, 0], [half, 0]], [0, 1], name="midpoint", order=2,
-    doc="""Explicit midpoint method (modified Euler), seed section 2.5.
+    doc="""Explicit midpoint method (modified Euler), §2.5. of the lecture notes
 
     Half an Euler step to ``y_{n+1/2} = y_n + h/2 F(y_n)``, then the whole step with the
     slope there: ``y_{n+1} = y_n + h F(y_{n+1/2})``.
@@ -54,11 +54,11 @@ rk3 = register(ExplicitRK(
 rk4 = register(ExplicitRK(
     [[0, 0, 0, 0], [half, 0, 0, 0], [0, half, 0, 0], [0, 0, 1, 0]], [sixth, third, third, sixth],
     name="rk4", order=4,
-    doc="""Classical Runge-Kutta method, seed eqs. 16-20.
+    doc="""Classical Runge-Kutta method, eqs. 16-20 of the lecture notes.
 
     ``K1 = F(y_n)``, ``K2 = F(y_n + h/2 K1)``, ``K3 = F(y_n + h/2 K2)``,
     ``K4 = F(y_n + h K3)``, ``y_{n+1} = y_n + h/6 (K1 + 2 K2 + 2 K3 + K4)``.
-    (The fourth stage is at ``t + h``; seed eq. 19 writes ``t``.)
+    (The fourth stage is at ``t + h``; eq. 19 of the lecture notes writes ``t``.)
 
     Order 4; four force evaluations per step. ``R(z) = sum_{k<=4} z^k / k!``; real
     stability interval about [-2.785, 0], imaginary about |y| <= 2.828.

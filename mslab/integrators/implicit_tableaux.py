@@ -12,7 +12,7 @@ from mslab.integrators.runge_kutta import ImplicitRK
 
 implicit_euler = register(ImplicitRK(
     [[1]], [1], name="implicit_euler", order=1, solver="newton",
-    doc="""Implicit (backward) Euler solved by Newton's method, seed eq. 27.
+    doc="""Implicit (backward) Euler solved by Newton's method, eq. 27 of the lecture notes.
 
     ``x_{n+1} = x_n + h v_{n+1}``,  ``v_{n+1} = v_n + h a(x_{n+1}, v_{n+1})``
 
@@ -30,7 +30,7 @@ implicit_euler = register(ImplicitRK(
 
 implicit_euler_fp = register(ImplicitRK(
     [[1]], [1], name="implicit_euler_fp", order=1, solver="fixed_point",
-    doc="""Implicit Euler solved by fixed-point iteration, seed eq. 28.
+    doc="""Implicit Euler solved by fixed-point iteration, eq. 28 of the lecture notes.
 
     ``y^{(k+1)} = y_n + h F(y^{(k)})`` with ``y = (x, v)``, started from
     ``y^{(0)} = y_n`` (the first iterate is then a forward Euler step), until the change
@@ -50,7 +50,7 @@ baraff_witkin = register(ImplicitRK(
 
     ``(M - h^2 K - h D) dv = h (f(x_n, v_n) + h K v_n)``,  ``v_{n+1} = v_n + dv``,
     ``x_{n+1} = x_n + h v_{n+1}`` (``K, D`` the Jacobians at ``(x_n, v_n)``): the first Newton
-    iteration of implicit Euler (``implicit_euler``, seed eq. 27) from ``v = v_n``, without
+    iteration of implicit Euler (``implicit_euler``, eq. 27 of the lecture notes) from ``v = v_n``, without
     the further iterations and without a convergence test. Exact implicit Euler on linear
     forces (same ``R(z) = 1/(1 - z)``, A-stable); on springs that rotate it deviates from
     implicit Euler by ``O(h^2)`` per step, so it is still first order, and its cost is fixed:

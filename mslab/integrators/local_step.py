@@ -1,4 +1,4 @@
-"""The local step of the fast mass-spring method and the glue of one iteration, compiled with numba.
+"""The local step of the fast mass-spring method and the glue of one iteration, compiled.
 
 Each spring ``q = (i, j)`` with stiffness ``k`` and rest length ``L`` is projected onto its
 rest length: ``d_q = L (x_i - x_j) / |x_i - x_j|`` (the closest vector of length ``L`` to
@@ -10,16 +10,17 @@ the stiffness-weighted graph Laplacian, the local step is the spring force in di
 :func:`local_rhs` does the local step and writes the global step's right-hand side
 ``b + h^2 (J d + f_other)`` on the free particles in one compiled pass; :func:`update`
 stores the global step's solution (plain, or Chebyshev-extrapolated) and returns the change.
-Both are plain functions compiled on first use by :func:`mslab.fast.jit.compiled`
-(``numba.njit(cache=True)``); :func:`projections_py` and :func:`local_rhs_numpy` are the
-uncompiled references the tests hold them to.
+Both are plain functions compiled on first use by :func:`mslab.jit.compiled`
+(``numba.njit(cache=True)`` without fastmath: the numpy code's round-off);
+:func:`projections_py` and :func:`local_rhs_numpy` are the uncompiled references the tests
+hold them to.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from mslab.fast.jit import compiled
+from mslab.jit import compiled
 
 
 def projections_py(x: np.ndarray, i: np.ndarray, j: np.ndarray, stiffness: np.ndarray,
@@ -142,15 +143,17 @@ def local_rhs_numpy(x: np.ndarray, i: np.ndarray, j: np.ndarray, stiffness: np.n
 def projections(x: np.ndarray, i: np.ndarray, j: np.ndarray, stiffness: np.ndarray,
                 rest_length: np.ndarray, out: np.ndarray) -> None:
     """Run :func:`projections_py` compiled: add ``J d`` to ``out`` (n_particles, dim)."""
-    compiled(projections_py)(x, i, j, stiffness, rest_length, out)
+    compiled(projections_py, "the local step of fast_mass_spring", fastmath=False)(
+        x, i, j, stiffness, rest_length, out)
 
 
 def local_rhs(*args) -> None:
     """Run :func:`local_rhs_py` compiled (same arguments)."""
-    compiled(local_rhs_py)(*args)
+    compiled(local_rhs_py, "the local step of fast_mass_spring", fastmath=False)(*args)
 
 
 def update(x: np.ndarray, new: np.ndarray, prev: np.ndarray, free_idx: np.ndarray, omega: float,
            relax: float, chebyshev: bool) -> float:
     """Run :func:`update_py` compiled (same arguments and result)."""
-    return compiled(update_py)(x, new, prev, free_idx, float(omega), float(relax), bool(chebyshev))
+    fast = compiled(update_py, "the update of fast_mass_spring", fastmath=False)
+    return fast(x, new, prev, free_idx, float(omega), float(relax), bool(chebyshev))

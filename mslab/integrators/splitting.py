@@ -21,7 +21,7 @@ no exact flow any more: it is the flow of ``v' = a(x, v)`` with x held fixed, an
 splitting of order p keeps its order when each kick approximates that flow to
 ``O(h^(p+1))``. So a kick takes one step of the explicit Runge-Kutta method of the
 splitting's order on that sub-problem (:data:`KICK_METHODS`: ``euler`` for order 1 —
-which is exactly the course's symplectic Euler, seed eqs. 7-10 — ``midpoint``, ``rk3``,
+which is exactly the course's symplectic Euler, eqs. 7-10 of the lecture notes — ``midpoint``, ``rk3``,
 ``rk4``, and ``rk6`` for orders 5 and 6), with ``s`` counted force evaluations per kick.
 Forces that depend on positions only make every stage equal, so then a kick costs one
 evaluation. The dissipated power is booked with the sub-step's weights ``b_i h b_j``.

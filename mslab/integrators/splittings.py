@@ -9,7 +9,7 @@ half = Fr(1, 2)
 
 symplectic_euler = register(Splitting(
     [0, 1], [1], name="symplectic_euler", order=1,
-    doc="""Symplectic Euler, velocity first (semi-implicit Euler), seed eqs. 9-10.
+    doc="""Symplectic Euler, velocity first (semi-implicit Euler), eqs. 9-10 of the lecture notes.
 
     ``v_{n+1} = v_n + h a(x_n, v_n)``,  ``x_{n+1} = x_n + h v_{n+1}``.
     Splitting ``drift = [0, 1], kick = [1]``.
@@ -21,7 +21,7 @@ symplectic_euler = register(Splitting(
 
 symplectic_euler_x = register(Splitting(
     [1, 0], [1], name="symplectic_euler_x", order=1,
-    doc="""Symplectic Euler, position first, seed eqs. 7-8.
+    doc="""Symplectic Euler, position first, eqs. 7-8 of the lecture notes.
 
     ``x_{n+1} = x_n + h v_n``,  ``v_{n+1} = v_n + h a(x_{n+1}, v_n)``.
     Splitting ``drift = [1, 0], kick = [1]``.

@@ -4,7 +4,7 @@ Both produce the positions of velocity Verlet, the splitting ``drift = [0, 1, 0]
 kick = [1/2, 1/2]`` (their ``splitting`` attribute; :mod:`mslab.derive` takes its order
 from that splitting's coefficients and expands their own step), but carry a different
 state between steps and so start differently and report velocities their own way, as
-the course writes them (seed eqs. 21-26). Each keeps its documented start-up step and
+the course writes them (lecture notes, eqs. 21-26). Each keeps its documented start-up step and
 second-order velocity estimate.
 """
 
@@ -39,7 +39,7 @@ class _SplittingForm(Integrator):
 
 
 class Verlet(_SplittingForm):
-    """Position (Störmer) Verlet, seed eqs. 21-23.
+    """Position (Störmer) Verlet, eqs. 21-23 of the lecture notes.
 
     ``x_{n+1} = 2 x_n - x_{n-1} + h^2 a(x_n, v_n)``
 
@@ -84,7 +84,7 @@ class Verlet(_SplittingForm):
 
 
 class Leapfrog(_SplittingForm):
-    """Leapfrog with staggered velocities at half steps, seed eqs. 24-26.
+    """Leapfrog with staggered velocities at half steps, eqs. 24-26 of the lecture notes.
 
     ``x_{n+1} = x_n + h v_{n+1/2}``,  ``v_{n+3/2} = v_{n+1/2} + h a(x_{n+1}, v_{n+1})``
 

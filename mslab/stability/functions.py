@@ -1,10 +1,10 @@
 """Stability functions and oscillator maps, read from each method's own coefficients.
 
-Two test problems (seed section 2.6):
+Two test problems (lecture notes, §2.6):
 
-* **Dahlquist**, ``y' = lam y`` (seed eq. 29) with ``z = lam * dt``. A Runge-Kutta
+* **Dahlquist**, ``y' = lam y`` (lecture notes, eq. 29) with ``z = lam * dt``. A Runge-Kutta
   method maps ``y_n`` to ``R(z) y_n`` with ``R(z) = det(I - zA + z 1 b^T) / det(I - zA)``
-  (forward Euler: ``R = 1 + z``, seed eq. 32), from the tableau that steps.
+  (forward Euler: ``R = 1 + z``, eq. 32 of the lecture notes), from the tableau that steps.
 * **Oscillator**, ``x'' = -w^2 x - gamma x'``. Splittings and the two-step forms treat x
   and v differently and have no scalar ``R(z)``: one step is a linear map of the method's
   whole state, its *amplification matrix*. In the scaled variables ``(x, dt v, ...)`` it
