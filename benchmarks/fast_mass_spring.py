@@ -175,6 +175,7 @@ def steady_frame(n: int, repeats: int, dt: float = 1 / 30) -> dict:
         diff.append(float(np.abs(new.x - other.x).max()))
         state = new
     work = s.counters.since(before)
+    share_ms, share_ref = solve_shares(fms, ref, g, s, state, dt, max(3, repeats // 4))
     return {"n": n, "repeats": repeats, "mslab_frame_ms": 1e3 * float(np.median(t_ms)),
             "reference_frame_ms": 1e3 * float(np.median(t_ref)),
             "ratio_mslab_over_reference": float(np.median(np.array(t_ms) / np.array(t_ref))),
@@ -184,8 +185,50 @@ def steady_frame(n: int, repeats: int, dt: float = 1 / 30) -> dict:
             "wall_frame_ms_mslab_reference": [1e3 * float(np.median(w_ms)), 1e3 * float(np.median(w_ref))],
             "solve_ms": 1e3 * float(np.median(t_solve)),  # median over repeats of the min of 3
             "ten_solves_share_of_reference_frame": float(np.median(10 * np.array(t_solve) / np.array(t_ref))),
+            "in_frame_solve_share_mslab_reference": [share_ms, share_ref],
             "max_position_difference": max(diff),
             "counters_per_frame": {k: v / repeats for k, v in work.items()}}
+
+
+def solve_shares(fms, ref, g, s, state, dt, repeats: int) -> tuple[float, float]:
+    """Share of the CHOLMOD solves in each frame (CPU time), timed inside extra frames.
+
+    In a frame the solves find the factor partly evicted by the local step: they cost more
+    than solves repeated back to back. mslab's solves are timed around ``Factor.solve``, the
+    reference's around ``cvxopt.cholmod.solve``; medians over ``repeats`` frames.
+    """
+    factor_solve, cholmod_solve = g.factor.solve, ref.cvxopt.cholmod.solve
+    spent = [0.0]
+
+    def counting(f):
+        def wrapped(*args):
+            t = time.process_time()
+            out = f(*args)
+            spent[0] += time.process_time() - t
+            return out
+        return wrapped
+
+    def mslab_frame():
+        g.factor.solve = counting(factor_solve)
+        try:
+            return fms.step(s, state, dt)
+        finally:
+            del g.factor.solve
+
+    def reference_frame():  # (mslab's solves also end in cvxopt.cholmod.solve: patched apart)
+        ref.cvxopt.cholmod.solve = counting(cholmod_solve)
+        try:
+            return ref.step(state)
+        finally:
+            ref.cvxopt.cholmod.solve = cholmod_solve
+
+    shares = [[], []]
+    for _ in range(repeats):
+        for k, run in enumerate((mslab_frame, reference_frame)):
+            spent[0] = 0.0
+            t, _ = timed(run)
+            shares[k].append(spent[0] / t)
+    return float(np.median(shares[0])), float(np.median(shares[1]))
 
 
 def distance_vs_time(n: int, repeats: int, dt: float = 1 / 30, frames: int = 5) -> dict:
