@@ -11,8 +11,9 @@ interleaved, medians):
    ``fast_mass_spring`` against :class:`PlainFastMassSpring`, a plain numba + CHOLMOD
    local/global written here (numba local step, numpy right-hand side, one CHOLMOD solve of
    the three coordinates per iteration), both stepping from the same states; the time of one
-   CHOLMOD solve alone (the floor of an iteration); the setup (matrix, factorisation,
-   compilation) of both, timed on its own and not charged to the frame, with mslab's counters;
+   CHOLMOD solve alone and the solves' share of each code's frame (timed inside frames: the
+   floor of a frame); the setup (matrix, factorisation, Chebyshev's spectral radius) of both,
+   timed on its own and not charged to the frame, with mslab's counters;
 2. distance from implicit Euler's step against time: ``max|x - x_IE| / max|x_IE - x_n|`` for
    5 to 40 plain and Chebyshev-accelerated (Wang 2015; mslab's one-sided default and Wang's
    own form) iterations from the same state, with each variant's frame time.
