@@ -256,3 +256,109 @@ def test_friction_makes_the_newton_matrix_nonsymmetric_and_lu_solves_it():
     assert factor.kind in ("lu", "lu_pivoted")
     b = np.random.default_rng(1).standard_normal(A.shape[0])
     assert np.linalg.norm(A @ factor.solve(b) - b) <= 1e-10 * np.linalg.norm(b)
+
+
+# -- fast mass-spring: compiled iteration, Chebyshev acceleration (issue 22) ------------------------------
+def test_compiled_local_step_equals_numpy():
+    """The compiled pass (local step, right-hand side, update) against vectorised numpy, to 1e-12."""
+    from mslab.integrators import local_step
+
+    scene = scaled_cloth(9)
+    s = scene.system
+    springs = next(e for e in s.effects if e.name == "springs")
+    rng = np.random.default_rng(5)
+    x = scene.state0.x + 0.05 * rng.standard_normal(scene.state0.x.shape)
+    x[7] = x[8]  # a spring of zero length: no force
+    free_idx = np.flatnonzero(~s.pinned)
+    extra, base = rng.standard_normal(x.shape), rng.standard_normal((free_idx.size, 3))
+    jd, rhs = np.empty_like(x), np.empty(base.shape, order="F")
+    args = (x, springs.i, springs.j, springs.stiffness, springs.rest_length, extra, base, 1e-3, free_idx)
+    local_step.local_rhs(*args, jd, rhs)
+    jd_ref, rhs_ref = local_step.local_rhs_numpy(*args)
+    scale = np.abs(jd_ref).max()
+    assert np.abs(jd - jd_ref).max() <= 1e-12 * scale
+    assert np.abs(rhs - rhs_ref).max() <= 1e-12 * np.abs(rhs_ref).max()
+    for chebyshev, omega, relax in [(False, 1.0, 1.0), (True, 1.0, 1.0), (True, 1.7, 1.0), (True, 1.7, 1.9)]:
+        xa, prev = x.copy(), x + rng.standard_normal(x.shape)
+        prev_in = prev.copy()
+        change = local_step.update(xa, rhs, prev, free_idx, omega, relax, chebyshev)
+        old, before = x[free_idx], prev_in[free_idx]
+        want = omega * (relax * (rhs - old) + old - before) + before if chebyshev else rhs
+        np.testing.assert_allclose(xa[free_idx], want, rtol=1e-12, atol=1e-12 * np.abs(want).max())
+        assert change == pytest.approx(np.abs(want - x[free_idx]).max(), rel=1e-12)
+        np.testing.assert_array_equal(prev[free_idx], x[free_idx] if chebyshev else prev_in[free_idx])
+
+
+def test_chebyshev_has_the_plain_fixed_point_and_converges_to_implicit_euler():
+    """Wang 2015's extrapolation keeps the fixed point (implicit Euler's step), reached in fewer sweeps."""
+    scene = mslab.load_scene("cloth")
+    s = scene.system
+    ie = mslab.get_method("implicit_euler")
+    state = ie.step(s, scene.state0, 1 / 30)
+    ref = ie.step(s, state, 1 / 30)
+    move = np.abs(ref.x - state.x).max()
+    rel = [np.abs(LocalGlobal(iterations=k, chebyshev=True).step(s, state, 1 / 30).x - ref.x).max() / move
+           for k in (40, 160, 640)]
+    assert all(b < a for a, b in zip(rel, rel[1:], strict=False)) and rel[-1] < 1e-8
+    plain40 = LocalGlobal(iterations=40).step(s, state, 1 / 30)
+    assert rel[0] < 0.5 * np.abs(plain40.x - ref.x).max() / move
+    runs = {}
+    for chebyshev in (False, True):
+        before = s.counters.snapshot()
+        new = LocalGlobal(iterations=100000, tol=1e-13, chebyshev=chebyshev).step(s, state, 1 / 30)
+        runs[chebyshev] = new, s.counters.since(before)["n_iter"]
+    assert np.abs(runs[True][0].x - runs[False][0].x).max() < 1e-8
+    assert ie_residual(s, state.x, state.v, runs[True][0].x, runs[True][0].v, 1 / 30) < 1e-6
+    assert runs[True][1] < runs[False][1] / 3
+
+
+def test_chebyshev_counts_its_setup_and_keeps_the_contract():
+    """Counters exact (the spectral radius estimate once per system and dt), pins still, momentum,
+    a fully pinned scene still."""
+    from mslab.integrators.local_global import POWER_ITERATIONS
+
+    scene = mslab.load_scene("cloth")
+    s = scene.system
+    method = LocalGlobal(iterations=10, chebyshev=True)
+    work = []
+    state = scene.state0
+    for _ in range(3):
+        before = s.counters.snapshot()
+        state = method.step(s, state, 1 / 30)
+        work.append(s.counters.since(before))
+    assert work[0]["n_factor"] == 1 and work[1]["n_factor"] == work[2]["n_factor"] == 0
+    assert work[0]["n_solve"] == 10 + POWER_ITERATIONS and work[0]["n_force"] == 11 + POWER_ITERATIONS
+    assert work[1] == work[2] and work[1]["n_solve"] == work[1]["n_force"] == work[1]["n_iter"] == 10
+    # start() does the setup before the first frame (as simulate calls it): counted there, not in the frame
+    fresh = mslab.load_scene("cloth")
+    before = fresh.system.counters.snapshot()
+    method.start(fresh.system, fresh.state0, 1 / 30)
+    setup = fresh.system.counters.since(before)
+    assert setup["n_factor"] == 1 and setup["n_solve"] == POWER_ITERATIONS
+    before = fresh.system.counters.snapshot()
+    method.step(fresh.system, fresh.state0, 1 / 30)
+    assert fresh.system.counters.since(before) == work[1]
+    pinned = s.pinned
+    np.testing.assert_array_equal(state.x[pinned], scene.state0.x[pinned])
+    free = cloth(8, 8, gravity=None, pin="none")
+    rng = np.random.default_rng(3)
+    state = State(free.state0.x, rng.standard_normal(free.state0.x.shape))
+    m = free.system.mass[:, None]
+    p0 = (m * state.v).sum(axis=0)
+    h, n_steps = 1 / 30, 20
+    for _ in range(n_steps):
+        state = method.step(free.system, state, h)
+    # Error model as for the plain method; each extrapolation omega (relax (new - x) + x - prev) + prev
+    # combines three iterates with weights summing to 1 (momentum kept exactly) and absolute sum
+    # <= 7 (omega, relax <= 2): at most 7 more roundings of |x| per coordinate and iteration
+    n_dof = state.x.size
+    bound = 8 * n_steps * n_dof * np.finfo(float).eps * (m * np.abs(state.x)).sum() / h
+    assert np.abs((m * state.v).sum(axis=0) - p0).max() < bound
+    from mslab.system import System
+
+    small = cloth(4, 4).system
+    still = System(small.mass, np.ones(small.n_particles, dtype=bool), small.effects, 3)
+    x0 = cloth(4, 4).state0.x
+    out = method.step(still, State(x0, np.zeros_like(x0)), h)
+    np.testing.assert_array_equal(out.x, x0)
+    np.testing.assert_array_equal(out.v, 0.0)

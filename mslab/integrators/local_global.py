@@ -29,9 +29,40 @@ damping along springs) are evaluated at the current iterate ``(x^k, (x^k - x_n)/
 right-hand side, so their fixed point is implicit Euler's too; stiff ones slow the
 iteration (a contraction only while their stiffness is small against ``M/h^2 + L``).
 
+**Cost.** Setup, once per system and dt (:func:`global_step`): the matrix, its
+factorisation (CHOLMOD's symbolic analysis and numeric factorisation, counted in
+``n_factor``; SuperLU without cvxopt) and, for Chebyshev, the spectral radius estimate
+below. Per iteration: one compiled pass (local step and right-hand side,
+:mod:`mslab.integrators.local_step`), the other effects' forces when they depend on the
+state (gravity is a constant, evaluated once), one solve with the kept factors.
+
+**Chebyshev acceleration** (``chebyshev=True``; Wang 2015, eq. 11-12): the plain iterate
+``x^`` is relaxed and extrapolated as ``x^{k+1} = omega_{k+1} (relax (x^{k+1}^ - x^k) + x^k -
+x^{k-1}) + x^{k-1}`` with ``omega = 1`` for the first ``delay`` iterations, ``omega = 2 / (2 -
+r^2)`` at the next and ``omega_{k+1} = 4 / (4 - r^2 omega_k)`` after: the Chebyshev
+semi-iteration for a linear fixed-point map whose spectrum lies in ``[-r, r]``. Same fixed
+point as the plain iteration. Spectral radius: ``rho`` of the plain map, given or (``rho=None``)
+estimated once per system and dt by :func:`spectral_radius`: power iteration
+(:data:`POWER_ITERATIONS` steps from a fixed random start) on the map's linearisation at the
+first step's inertial guess ``y``, ``delta -> Q^-1 h^2 [d(J d + f_other)/dx delta]_free``, the
+derivative by a finite difference of the local step; each power step is one counted force
+evaluation and solve. The estimate tends to ``rho`` (from below in practice: the safe side,
+an over-estimate makes the extrapolation diverge); an estimate >= 1 (a map that does not
+contract there) switches the extrapolation off. Wang's form takes
+``relax = 1, r = rho`` (``one_sided=False``). The default (``one_sided=True``) uses that this
+map's spectrum is one-sided, in ``[0, rho]``: the local step's derivative ``k L/l (I - u u^T)``
+is positive semidefinite for any spring length ``l``, so ``Q^-1 h^2 J'`` is similar to a
+positive semidefinite matrix (with springs, linear drag and constant forces only; other
+effects may break it). Relaxing by ``relax = 2 / (2 - rho)`` maps ``[0, rho]`` onto ``[-r, r]``,
+``r = rho / (2 - rho)``, a smaller radius: on the 81 x 81 cloth at h = 1/30, 10 iterations
+land 0.086 of the step away from implicit Euler's result against 0.16 with Wang's form and
+0.25 plain, 40 iterations 0.0065 / 0.013 / 0.13, at the plain iterations' cost per
+iteration (``benchmarks/fast_mass_spring.py``, ``benchmarks/RESULTS.md``).
+
 Reference: T. Liu, A. W. Bargteil, J. F. O'Brien, L. Kavan, "Fast Simulation of
-Mass-Spring Systems", ACM Trans. Graph. 32(6), 209 (2013). Related: projective dynamics
-(Bouaziz et al. 2014).
+Mass-Spring Systems", ACM Trans. Graph. 32(6), 209 (2013). H. Wang, "A Chebyshev
+semi-iterative approach for accelerating projective and position-based dynamics", ACM
+Trans. Graph. 34(6), 246 (2015). Related: projective dynamics (Bouaziz et al. 2014).
 """
 
 from __future__ import annotations
@@ -43,13 +74,15 @@ import numpy as np
 
 from mslab.integrators.base import Integrator
 from mslab.integrators.linear import Factor
-from mslab.integrators.local_step import projections
+from mslab.integrators.local_step import local_rhs, update
 from mslab.state import State
 
 if TYPE_CHECKING:
     from mslab.system import System
 
 _CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+#: power-iteration steps of the spectral radius estimate (Chebyshev acceleration)
+POWER_ITERATIONS = 30
 
 
 class GlobalStep:
@@ -73,6 +106,13 @@ class GlobalStep:
         self.gamma = sum(e.linear_drag() for e in drags)
         #: effects evaluated at the iterate: everything but Hooke springs and linear drag
         self.others = [e for e in system.effects if e not in springs and e not in drags]
+        #: the others' forces that depend on neither x nor v (gravity), summed once
+        self.constant = np.zeros((system.n_particles, system.dim))
+        for e in self.others:
+            f = e.constant_force()
+            if f is not None:
+                self.constant = self.constant + f
+        self.varying = [e for e in self.others if e.constant_force() is None]
         #: springs with a velocity-dependent remainder (damping along the springs)
         self.damped_springs = [e for e in springs if e.velocity_dependent]
         n = system.n_particles
@@ -81,10 +121,75 @@ class GlobalStep:
                              (np.concatenate([self.i, self.j, self.i, self.j]),
                               np.concatenate([self.i, self.j, self.j, self.i]))), shape=(n, n)).tocsr()
         self.free = ~system.pinned
+        self.free_idx = np.flatnonzero(self.free)
+        # unsigned indices for the compiled pass: numba drops its negative-index test (the
+        # spring kernel measured 0.81x with them, benchmarks/RESULTS.md)
+        self.i_u, self.j_u = self.i.astype(np.uint32), self.j.astype(np.uint32)
         self.pinned = system.pinned.copy()
+        self.rho: float | None = None  # the spectral radius estimate (Chebyshev), on first use
         self.lap_fp = lap[self.free][:, self.pinned]
         Q = sp.diags(system.mass[self.free] + dt * self.gamma) + (dt * dt) * lap[self.free][:, self.free]
         self.factor = Factor(Q.tocsc(), system.counters)
+
+    def other_forces(self, x: np.ndarray, xn: np.ndarray, dt: float) -> np.ndarray:
+        """Return the other forces (all but springs and drag) at the iterate ``(x, (x - x_n)/h)``."""
+        if not (self.varying or self.damped_springs):
+            return self.constant
+        out = self.constant.copy()
+        v = (x - xn) / dt
+        for e in self.varying:
+            out += e.force(x, v)
+        for e in self.damped_springs:  # the damping part of a damped spring
+            out += e.force(x, v) - e.force(x, np.zeros_like(v))
+        return out
+
+    def rhs(self, x: np.ndarray, xn: np.ndarray, base: np.ndarray, dt: float, jd: np.ndarray,
+            out: np.ndarray) -> None:
+        """Local step at ``x``: ``jd = J d + f_other`` and ``out = base + h^2 jd[free]``."""
+        local_rhs(x, self.i_u, self.j_u, self.stiffness, self.rest_length, self.other_forces(x, xn, dt),
+                  base, dt * dt, self.free_idx, jd, out)
+
+
+def spectral_radius(g: GlobalStep, system: System, x: np.ndarray, xn: np.ndarray, base: np.ndarray,
+                    dt: float, steps: int = POWER_ITERATIONS) -> float:
+    """Estimate the spectral radius of the local/global map's linearisation at ``x`` (power iteration).
+
+    The map is ``x_free -> Q^-1 (base + h^2 jd(x)[free])``; its derivative applied to
+    ``delta`` (pinned entries zero) is ``Q^-1 h^2 [jd(x + eps delta) - jd(x)]_free / eps``
+    (``eps = 1e-6 (1 + max |x|)``, ``|delta| = 1``). ``steps`` steps from a fixed random start;
+    each counts one force evaluation and one solve. Returns the last norm ratio.
+    """
+    c = system.counters
+    free = g.free_idx
+    jd0, jd1 = np.empty_like(x), np.empty_like(x)
+    out = np.empty(base.shape, order="F")
+    zero = np.zeros_like(base)
+    g.rhs(x, xn, zero, dt, jd0, out)
+    c.n_force += 1
+    eps = 1e-6 * (1.0 + float(np.max(np.abs(x))))
+    delta = np.random.default_rng(0).standard_normal(base.shape)
+    rho = 0.0
+    for _ in range(steps):
+        delta /= np.linalg.norm(delta)
+        moved = x.copy()
+        moved[free] += eps * delta
+        g.rhs(moved, xn, zero, dt, jd1, out)
+        image = g.factor.solve(np.asfortranarray((dt * dt / eps) * (jd1[free] - jd0[free])))
+        c.n_force += 1
+        c.n_solve += 1
+        rho = float(np.linalg.norm(image))
+        if not np.isfinite(rho) or rho == 0.0:
+            break
+        delta = image
+    return rho
+
+
+def chebyshev_weights(rho: float, iterations: int, delay: int) -> np.ndarray:
+    """``omega_k`` for ``k = 1 .. iterations`` (Wang 2015, eq. 12): 1 up to ``delay``, then Chebyshev's."""
+    omega = np.ones(iterations)
+    for k in range(delay, iterations):
+        omega[k] = 2.0 / (2.0 - rho * rho) if k == delay else 4.0 / (4.0 - rho * rho * omega[k - 1])
+    return omega
 
 
 def global_step(system: System, dt: float) -> GlobalStep:
@@ -109,10 +214,22 @@ class LocalGlobal(Integrator):
         Stop earlier once ``max |x^{k+1} - x^k| <= tol (1 + max |x_n|)``; None: always
         ``iterations`` sweeps.
     doc : str, optional
+    chebyshev : bool, optional
+        Chebyshev acceleration (Wang 2015; module docstring): same fixed point, faster
+        approach to it.
+    rho : float, optional
+        Chebyshev's spectral radius; None: estimated once per system and dt
+        (:func:`spectral_radius`, counted).
+    delay : int, optional
+        Plain iterations before the Chebyshev extrapolation starts (Wang's ``S``).
+    one_sided : bool, optional
+        Relax by ``2 / (2 - rho)`` first (the map's spectrum is in ``[0, rho]``: module
+        docstring); False: Wang's form, ``[-rho, rho]``.
 
     Cost per iteration: one force evaluation (the compiled local step for the springs, the
     other effects directly), one solve with the kept factors (``n_force``, ``n_solve``,
-    ``n_iter`` counted; ``n_factor`` once per system and dt).
+    ``n_iter`` counted; ``n_factor`` once per system and dt, with the spectral radius
+    estimate's ``POWER_ITERATIONS`` force evaluations and solves for Chebyshev).
     """
 
     family = "local_global"
@@ -126,12 +243,21 @@ class LocalGlobal(Integrator):
     n_stages = 1
 
     def __init__(self, name: str = "local_global", iterations: int = 10, tol: float | None = None,
-                 doc: str | None = None):
+                 doc: str | None = None, chebyshev: bool = False, rho: float | None = None,
+                 delay: int = 1, one_sided: bool = True):
         if iterations < 1:
             raise ValueError(f"iterations must be >= 1, got {iterations}")
+        if rho is not None and not 0.0 <= rho < 1.0:
+            raise ValueError(f"rho must be in [0, 1), got {rho}")
+        if delay < 1:
+            raise ValueError(f"delay must be >= 1, got {delay}")
         self.name = name
         self.iterations = int(iterations)
         self.tol = tol
+        self.chebyshev = bool(chebyshev)
+        self.rho = rho
+        self.delay = int(delay)
+        self.one_sided = bool(one_sided)
         self.coefficients = {"iterations": self.iterations}
         if doc:
             self.__doc__ = doc
@@ -161,6 +287,45 @@ class LocalGlobal(Integrator):
         return out
 
     # -- stepping ---------------------------------------------------------------------------------
+    def start(self, system: System, state: State, dt: float) -> State:
+        """Set up before the first frame: the global matrix's factorisation and Chebyshev's ``rho``.
+
+        Counted as they happen (``n_factor``; the estimate's force evaluations and solves);
+        a step without it does the same on first use. Returns ``state``.
+        """
+        if not system.pinned.all():
+            g = global_step(system, dt)
+            if self.chebyshev and self.rho is None and g.rho is None:
+                y = state.x + dt * state.v
+                self.weights(g, system, y, state.x, self._base(g, system, state, dt), dt)
+        return state
+
+    @staticmethod
+    def _base(g: GlobalStep, system: System, state: State, dt: float) -> np.ndarray:
+        """Return the constant part of the right-hand side, ``M y + h gamma x_n - h^2 L_fp x_p``."""
+        y = state.x + dt * state.v
+        free = g.free
+        base = system.mass[free, None] * y[free] + (dt * g.gamma) * state.x[free]
+        if g.lap_fp.nnz:
+            base = base - (dt * dt) * (g.lap_fp @ y[g.pinned])
+        return base
+
+    def weights(self, g: GlobalStep, system: System, y: np.ndarray, xn: np.ndarray, base: np.ndarray,
+                dt: float) -> tuple[np.ndarray, float]:
+        """Return Chebyshev's weights ``omega_k`` and relaxation (1 without Chebyshev; module docstring)."""
+        if not self.chebyshev:
+            return np.ones(self.iterations), 1.0
+        rho = self.rho
+        if rho is None:
+            if g.rho is None:  # setup: once per system and dt, at the first step's guess
+                g.rho = spectral_radius(g, system, y, xn, base, dt)
+            rho = g.rho
+        if not 0.0 <= rho < 1.0:  # the plain iteration does not contract there: no extrapolation
+            return np.ones(self.iterations), 1.0
+        if not self.one_sided:
+            return chebyshev_weights(rho, self.iterations, self.delay), 1.0
+        return chebyshev_weights(rho / (2.0 - rho), self.iterations, self.delay), 2.0 / (2.0 - rho)
+
     def step(self, system: System, state: State, dt: float) -> State:
         """One step: ``iterations`` local/global sweeps from the inertial guess ``y``."""
         if system.pinned.all():  # nothing free: no global matrix to factor, every particle stays put
@@ -169,31 +334,21 @@ class LocalGlobal(Integrator):
         c = system.counters
         xn, vn = state.x, state.v
         y = xn + dt * vn
-        free = g.free
-        # constant part of the right-hand side: M y + h gamma x_n - h^2 L_fp x_p (pinned x = y)
-        base = system.mass[free, None] * y[free] + (dt * g.gamma) * xn[free]
-        if g.lap_fp.nnz:
-            base = base - (dt * dt) * (g.lap_fp @ y[g.pinned])
+        base = self._base(g, system, state, dt)
+        omega, relax = self.weights(g, system, y, xn, base, dt)
         x = y.copy()
+        prev = y.copy()  # the iterate before the last (Chebyshev)
         scale = 1.0 + float(np.max(np.abs(xn))) if xn.size else 1.0
         jd = np.empty_like(x)
+        rhs = np.empty(base.shape, order="F")  # the solvers read columns
         done = 0
         while done < self.iterations:
-            done += 1
             c.n_force += 1
-            jd[:] = 0.0
-            projections(x, g.i, g.j, g.stiffness, g.rest_length, jd)
-            if g.others or g.damped_springs:
-                v = (x - xn) / dt
-                for e in g.others:
-                    jd += e.force(x, v)
-                for e in g.damped_springs:  # the damping part of a damped spring
-                    jd += e.force(x, v) - e.force(x, np.zeros_like(v))
-            rhs = np.asfortranarray(base + (dt * dt) * jd[free])  # SuperLU solves columns
+            g.rhs(x, xn, base, dt, jd, rhs)
             new = g.factor.solve(rhs)
             c.n_solve += 1
-            change = float(np.max(np.abs(new - x[free]))) if new.size else 0.0
-            x[free] = new
+            change = update(x, new, prev, g.free_idx, omega[done], relax, self.chebyshev)
+            done += 1
             if not np.isfinite(change):
                 break
             if self.tol is not None and change <= self.tol * scale:
