@@ -8,7 +8,7 @@ fast_mass_spring = register(LocalGlobal(
     doc="""Fast mass-spring method (Liu et al. 2013): implicit Euler by 10 local/global iterations.
 
     Minimises implicit Euler's objective ``g(x) = |x - y|_M^2 / (2 h^2) + E(x)``,
-    ``y = x_n + h v_n`` (seed eq. 27 as an optimisation), by block coordinate descent:
+    ``y = x_n + h v_n`` (eq. 27 of the lecture notes as an optimisation), by block coordinate descent:
     local step ``d_q = L_q (x_i - x_j)/|x_i - x_j|`` per spring (compiled), global step
     ``(M + h gamma + h^2 L) x = M y + h gamma x_n + h^2 (J d + f_other)`` with a constant
     matrix factored once per scene and dt; then ``v_{n+1} = (x_{n+1} - x_n)/h``.

@@ -1,6 +1,6 @@
 """Local/global iteration for implicit Euler: the fast mass-spring method (Liu et al. 2013).
 
-Implicit Euler's step is the minimiser of (seed eq. 27 written as an optimisation)::
+Implicit Euler's step is the minimiser of (eq. 27 of the lecture notes written as an optimisation)::
 
     g(x) = 1/(2 h^2) (x - y)^T M (x - y) + E(x),     y = x_n + h v_n,
 
