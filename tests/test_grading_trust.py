@@ -1,17 +1,22 @@
 """Grading v3 (issue 20): nothing the sandbox says is trusted; one student cannot touch another.
 
-1. Leaks: submissions that send a hidden test's inputs back in the sandbox's words (an
-   exception class named ``<wire>``, a class name or an exit code carrying the data). A
-   unique marker planted in a hidden test's inputs must appear nowhere in the reports,
-   the JSON, the CSV or the journal; the same marker in a public test *does* reach its
-   report (so the leakers do send it, and this test can fail).
-2. A CPU hog (busy loops forked with ``setsid`` at import) graded beside an honest
-   classmate: the classmate keeps full marks; the hog ends with its grader.
+1. A class of 30 graded together, in each isolation mode: five leakers, one CPU hog and
+   24 honest students (the reference solution and honest variations of it).
+
+   - Leakers send a hidden test's inputs back in the sandbox's words (an exception class
+     named ``<wire>``, a class name or an exit code carrying the data). A unique marker
+     planted in a hidden test's inputs must appear nowhere in the reports, the JSON, the
+     CSV or the journal; the same marker in a public test *does* reach its report (so the
+     leakers do send it, and this test can fail).
+   - The hog forks busy loops, each with ``setsid``, at import: its tests hit the CPU
+     limit of its sandbox (so its loops ran), every honest classmate keeps full marks, and
+     nothing (loop, temporary folder, cgroup) outlives the grading.
+2. A CPU hog in a grading of its own beside an honest classmate's: the classmate keeps full
+   marks; the hog's loops and cgroups end with its grader (stopped by SIGTERM).
 3. Grading as an unprivileged user (a user created for the test, when run as root).
 
 Each grading runs exercise 07 only; the runs are bounded (``timeout``) and synchronise on
-processes seen in /proc, never on sleeps.
-"""
+processes seen in /proc, never on sleeps."""
 
 from __future__ import annotations
 
@@ -31,6 +36,8 @@ import pytest
 
 from mslab.grading import grade
 from mslab.grading.box import PREFIX
+from mslab.grading.box import _mounts as cgroup_mounts
+from mslab.grading.box import _own as own_cgroup
 from mslab.grading.box import setup as setup_cgroups
 from mslab.grading.box import teardown as teardown_cgroups
 from mslab.grading.isolation import _probe
@@ -40,6 +47,12 @@ ROOT = Path(__file__).resolve().parents[1]
 SOURCE = ROOT / "exercises"
 TARGET, MODULE = "07_stability_function", "stability_function.py"
 HIDDEN_MARK, PUBLIC_MARK = "4271953", "3859137"
+#: CPU seconds per test in the class of 30: the hog's cost is about its number of tests times
+#: this; the reference and its variations pass every test with 0.03 s (measured): a 16x margin
+CLASS_TIMEOUT = 0.5
+#: busy loops of the hog in the class (4x the cores of a 2-core machine; each restart of its
+#: sandbox forks them again, so more only slows its own grading)
+CLASS_HOG_LOOPS = 8
 MODES = [m for m in ("bwrap", "namespaces") if sys.platform.startswith("linux") and _probe(m)]
 
 MARKED_TEST = """
@@ -101,99 +114,10 @@ LEAKERS = {
 }
 
 
-def _source_with_markers(base: Path) -> Path:
-    """A copy of exercise 07 whose public and hidden tests call with marked inputs."""
-    src = base / "source"
-    shutil.copytree(SOURCE / TARGET, src / TARGET, ignore=shutil.ignore_patterns("__pycache__"))
-    for name, kind, mark in (
-        ("test_hidden.py", "hidden", HIDDEN_MARK),
-        ("test_public.py", "public", PUBLIC_MARK),
-    ):
-        path = src / TARGET / name
-        text = path.read_text()
-        if "check_array" not in text.split("def ")[0]:
-            text = text.replace(
-                "import pytest\n", "import pytest\n\nfrom mslab.grading.checks import check_array\n", 1
-            )
-        path.write_text(text + MARKED_TEST.format(kind=kind, mark=mark))
-    return src
-
-
-@pytest.fixture(
-    scope="module", params=MODES or [pytest.param("none", marks=pytest.mark.skip("no namespaces"))]
-)
-def leaked(request, tmp_path_factory):
-    """Grade the leakers and an honest classmate (the reference) against the marked tests."""
-    base = tmp_path_factory.mktemp(f"leak-{request.param}")
-    src = _source_with_markers(base)
-    cls = base / "class"
-    for name, code in LEAKERS.items():
-        (cls / name / TARGET).mkdir(parents=True)
-        (cls / name / TARGET / MODULE).write_text(textwrap.dedent(code))
-    (cls / "honest" / TARGET).mkdir(parents=True)
-    shutil.copyfile(SOURCE / TARGET / MODULE, cls / "honest" / TARGET / MODULE)
-    journal = base / "book.journal"
-    results = grade([cls], source=src, jobs=2, timeout=5.0, isolation=request.param, journal=journal)
-    texts = [format_report(r) for r in results]
-    texts.append(json.dumps([r.to_dict() for r in results]))
-    texts.append("\n".join(",".join(row) for row in gradebook_rows(results)))
-    texts.append(journal.read_text())
-    return {r.student: r for r in results}, texts
-
-
-def test_honest_classmate_passes_the_marked_tests(leaked):
-    honest = leaked[0]["honest"]
-    assert honest.total == honest.max_points > 0, [
-        (t.test, t.reason) for e in honest.exercises for t in e.tests
-    ]
-
-
-def test_the_leakers_do_send_the_public_marker(leaked):
-    """The channel is real: in a public test the student's own message (bounded) is shown."""
-    results = leaked[0]
-    for name in ("wire_class", "class_name", "exception_name", "exit_message"):
-        (marked,) = [
-            t for e in results[name].exercises for t in e.tests if t.test.endswith("marked_inputs_public")
-        ]
-        assert PUBLIC_MARK in marked.reason, (name, marked.reason)
-    (code,) = [t for e in results["exit_code"].exercises for t in e.tests if t.test.endswith("inputs_public")]
-    assert "exited with code 39" in code.reason  # round(0.3859137 * 100): the runner saw the status
-
-
-def test_the_hidden_marker_appears_nowhere(leaked):
-    results, texts = leaked
-    for text in texts:
-        assert HIDDEN_MARK not in text
-    for name in LEAKERS:
-        assert results[name].total == 0
-        hidden = [
-            t.reason for e in results[name].exercises for t in e.tests if t.test.startswith("test_hidden")
-        ]
-        assert hidden and all(r.startswith("hidden test: ") for r in hidden), hidden
-        assert not any("43" in r or "code" in r for r in hidden), hidden  # no exit code either
-
-
-def test_hidden_reasons_are_fixed_phrases_per_kind(leaked):
-    results = leaked[0]
-    phrase = {
-        "wire_class": "raised an exception",
-        "exception_name": "raised an exception",
-        "class_name": "answered something that is not plain data",
-        "exit_code": "the process died",
-        "exit_message": "raised an exception",
-    }
-    for name, expected in phrase.items():
-        reasons = {
-            t.reason for e in results[name].exercises for t in e.tests if t.test.startswith("test_hidden")
-        }
-        assert reasons == {f"hidden test: {expected}"}, (name, reasons)
-
-
-# -- a CPU hog beside an honest classmate -----------------------------------------------------
-
+#: a CPU hog: busy loops, each in its own session, forked at import; every call sleeps
 HOG = """
 import subprocess, sys
-for _ in range(40):
+for _ in range(LOOPS):
     try:
         subprocess.Popen([sys.executable, "-c", "# mslab-hog-loop\\nwhile True: pass"],
                          start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -229,10 +153,180 @@ def _wait_for(condition, limit: float, what: str) -> None:
         time.sleep(0.05)
 
 
+def _source_with_markers(base: Path) -> Path:
+    """A copy of exercise 07 whose public and hidden tests call with marked inputs."""
+    src = base / "source"
+    shutil.copytree(SOURCE / TARGET, src / TARGET, ignore=shutil.ignore_patterns("__pycache__"))
+    for name, kind, mark in (
+        ("test_hidden.py", "hidden", HIDDEN_MARK),
+        ("test_public.py", "public", PUBLIC_MARK),
+    ):
+        path = src / TARGET / name
+        text = path.read_text()
+        if "check_array" not in text.split("def ")[0]:
+            text = text.replace(
+                "import pytest\n", "import pytest\n\nfrom mslab.grading.checks import check_array\n", 1
+            )
+        path.write_text(text + MARKED_TEST.format(kind=kind, mark=mark))
+    return src
+
+
+#: honest variations of the reference solution: (old text, new text) replaced in its file
+HONEST_VARIANTS = [
+    [],
+    [  # every z at once: one batched solve
+        ("""    R = np.empty(z.shape, dtype=complex)
+    for idx in np.ndindex(*z.shape):
+        stages = np.linalg.solve(np.eye(s) - z[idx] * A, np.ones(s))
+        R[idx] = 1.0 + z[idx] * (b @ stages)
+    return R""",
+         """    M = np.eye(s) - z.reshape(-1, 1, 1) * A
+    stages = np.linalg.solve(M, np.ones((z.size, s, 1)))[..., 0]
+    return (1.0 + z.reshape(-1) * (stages @ b)).reshape(z.shape)"""),
+    ],
+    [  # the bisection written as a counted loop
+        ("""    while hi - lo > tol:
+        mid = 0.5 * (lo + hi)
+        if unstable(mid):
+            lo = mid
+        else:
+            hi = mid""",
+         """    for _ in range(200):
+        if hi - lo <= tol:
+            break
+        mid = (lo + hi) / 2
+        lo, hi = (mid, hi) if unstable(mid) else (lo, mid)"""),
+    ],
+]
+
+
+def _honest_source(k: int) -> str:
+    """Student ``k``'s honest file: the reference, varied, with a comment of its own."""
+    text = (SOURCE / TARGET / MODULE).read_text()
+    for old, new in HONEST_VARIANTS[k % len(HONEST_VARIANTS)]:
+        assert old in text, "the reference solution changed: update HONEST_VARIANTS"
+        text = text.replace(old, new)
+    return f"# student {k}: my own work\n" + text
+
+
+def _leftovers(pid: int) -> list[str]:
+    """What a grading by process ``pid`` could leave behind: hog loops, folders, cgroups."""
+    left = [f"{n} hog loops"] if (n := _hog_loops()) else []
+    left += [str(p) for p in Path(tempfile.gettempdir()).glob(f"mslab-grade-{pid}-*")]
+    v2, v1 = cgroup_mounts()
+    hierarchies = {"": v2} if v2 else {}
+    hierarchies.update(v1)
+    for name, mount in hierarchies.items():
+        try:
+            base = Path(mount) / own_cgroup(name).lstrip("/")
+        except OSError:
+            continue
+        left += [str(p) for p in base.glob(f"{PREFIX}{pid}*")]
+    return left
+
+
+@pytest.fixture(
+    scope="module", params=MODES or [pytest.param("none", marks=pytest.mark.skip("no namespaces"))]
+)
+def graded_class(request, tmp_path_factory):
+    """A class of 30 graded together against the marked tests: the leakers, one CPU hog
+    and 24 honest students (the reference and honest variations of it)."""
+    base = tmp_path_factory.mktemp(f"class-{request.param}")
+    src = _source_with_markers(base)
+    cls = base / "class"
+    sources = {name: textwrap.dedent(code) for name, code in LEAKERS.items()}
+    sources["hog"] = HOG.replace("LOOPS", str(CLASS_HOG_LOOPS))
+    sources.update({f"honest{k:02d}": _honest_source(k) for k in range(30 - len(sources))})
+    for name, text in sources.items():
+        (cls / name / TARGET).mkdir(parents=True)
+        (cls / name / TARGET / MODULE).write_text(text)
+    journal = base / "book.journal"
+    results = grade([cls], source=src, jobs=2, timeout=CLASS_TIMEOUT, isolation=request.param,
+                    journal=journal)
+    left = _leftovers(os.getpid())
+    texts = [format_report(r) for r in results]
+    texts.append(json.dumps([r.to_dict() for r in results]))
+    texts.append("\n".join(",".join(row) for row in gradebook_rows(results)))
+    texts.append(journal.read_text())
+    return {r.student: r for r in results}, texts, left
+
+
+def _reasons(result, prefix: str = "test_hidden") -> set[str]:
+    return {t.reason for e in result.exercises for t in e.tests if t.test.startswith(prefix)}
+
+
+def test_a_class_of_30_has_one_hog_five_leakers_and_24_honest(graded_class):
+    results = graded_class[0]
+    assert len(results) == 30
+    assert sum(name.startswith("honest") for name in results) == 24
+
+
+def test_every_honest_student_has_full_marks(graded_class):
+    for name, r in graded_class[0].items():
+        if name.startswith("honest"):
+            assert r.total == r.max_points > 0, (name, [(t.test, t.reason) for e in r.exercises
+                                                        for t in e.tests if not t.passed])
+
+
+def test_the_hog_hogged_and_scores_nothing(graded_class):
+    """Its hidden tests hit the CPU limit of its sandbox: its loops ran, inside its box."""
+    hog = graded_class[0]["hog"]
+    assert hog.total == 0
+    assert _reasons(hog) == {"hidden test: timed out (CPU time limit)"}
+
+
+def test_nothing_outlives_grading(graded_class):
+    assert graded_class[2] == []
+
+
+def test_the_leakers_do_send_the_public_marker(graded_class):
+    """The channel is real: in a public test the student's own message (bounded) is shown."""
+    results = graded_class[0]
+    for name in ("wire_class", "class_name", "exception_name", "exit_message"):
+        (marked,) = [
+            t for e in results[name].exercises for t in e.tests if t.test.endswith("marked_inputs_public")
+        ]
+        assert PUBLIC_MARK in marked.reason, (name, marked.reason)
+    (code,) = [t for e in results["exit_code"].exercises for t in e.tests if t.test.endswith("inputs_public")]
+    assert "exited with code 39" in code.reason  # round(0.3859137 * 100): the runner saw the status
+
+
+def test_the_hidden_marker_appears_nowhere(graded_class):
+    results, texts, _ = graded_class
+    for text in texts:
+        assert HIDDEN_MARK not in text
+    for name in LEAKERS:
+        assert results[name].total == 0
+        hidden = [
+            t.reason for e in results[name].exercises for t in e.tests if t.test.startswith("test_hidden")
+        ]
+        assert hidden and all(r.startswith("hidden test: ") for r in hidden), hidden
+        assert not any("43" in r or "code" in r for r in hidden), hidden  # no exit code either
+
+
+def test_hidden_reasons_are_fixed_phrases_per_kind(graded_class):
+    results = graded_class[0]
+    phrase = {
+        "wire_class": "raised an exception",
+        "exception_name": "raised an exception",
+        "class_name": "answered something that is not plain data",
+        "exit_code": "the process died",
+        "exit_message": "raised an exception",
+    }
+    for name, expected in phrase.items():
+        reasons = {
+            t.reason for e in results[name].exercises for t in e.tests if t.test.startswith("test_hidden")
+        }
+        assert reasons == {f"hidden test: {expected}"}, (name, reasons)
+
+
+# -- a CPU hog in another grading, stopped by SIGTERM -----------------------------------------
+
+
 @pytest.mark.skipif(not MODES, reason="no namespaces here: a hog's loops would outlive its sandbox")
 def test_a_cpu_hog_costs_an_honest_classmate_nothing(tmp_path):
     (tmp_path / "hog" / TARGET).mkdir(parents=True)
-    (tmp_path / "hog" / TARGET / MODULE).write_text(HOG)
+    (tmp_path / "hog" / TARGET / MODULE).write_text(HOG.replace("LOOPS", "40"))
     (tmp_path / "honest" / TARGET).mkdir(parents=True)
     shutil.copyfile(SOURCE / TARGET / MODULE, tmp_path / "honest" / TARGET / MODULE)
     env = dict(os.environ, PYTHONPATH=str(ROOT))
