@@ -38,10 +38,10 @@ def _write(path: str | Path, text: str) -> None:
         fh.write(text)
 
 
-def _mounts() -> tuple[str | None, dict[str, str]]:
+def _mounts(mountinfo: str = "/proc/self/mountinfo") -> tuple[str | None, dict[str, str]]:
     """Return the cgroup v2 mount point, and each v1 controller's mount point."""
     v2, v1 = None, {}
-    with open("/proc/self/mountinfo") as fh:
+    with open(mountinfo) as fh:
         for line in fh:
             pre, _, post = line.partition(" - ")
             fstype, _, opts = (post.split() + ["", "", ""])[:3]
@@ -55,9 +55,9 @@ def _mounts() -> tuple[str | None, dict[str, str]]:
     return v2, v1
 
 
-def _own(hierarchy: str) -> str:
+def _own(hierarchy: str, table: str = "/proc/self/cgroup") -> str:
     """Return the grader's cgroup path in one hierarchy (``""`` for v2, a controller name for v1)."""
-    with open("/proc/self/cgroup") as fh:
+    with open(table) as fh:
         for line in fh:
             _, names, path = line.rstrip("\n").split(":", 2)
             if (hierarchy == "" and names == "") or hierarchy in names.split(","):
@@ -67,9 +67,9 @@ def _own(hierarchy: str) -> str:
 
 def _clean_stale(parent: Path) -> None:
     """Remove the parent cgroups of graders that were killed (their pid is gone)."""
-    for folder in parent.glob(f"{PREFIX}*"):
+    for folder in parent.glob(f"{PREFIX}*"):  # PID, or PID-grader (a delegated grader's leaf)
         try:
-            os.kill(int(folder.name[len(PREFIX):]), 0)
+            os.kill(int(folder.name[len(PREFIX):].split("-")[0]), 0)
         except ProcessLookupError:
             for child in folder.iterdir():
                 if child.is_dir():
