@@ -4,7 +4,10 @@ Usage: ``python benchmarks/grading_hog.py [--repeats 3] [--exercise 07_stability
 Every student has the reference solution of the exercise; in the second class one of the
 30 instead forks 40 busy loops (each ``setsid``) at import and sleeps in every call. The
 runs alternate quiet/hog; the figure is the median of each, and their ratio. Prints one
-JSON document (machine, load, isolation and cgroup, times, ratio, marks).
+JSON document (machine, load, isolation and cgroup, times, ratio, marks, hog loops left).
+The load average before each run is recorded too; during and just after a hog run it
+includes the hog's own 40 loops (about +40), so ``load_before`` (taken before any run) is
+the measure of other work on the machine.
 """
 
 from __future__ import annotations
@@ -74,6 +77,7 @@ def main() -> None:
     args = ap.parse_args()
     base = Path(tempfile.mkdtemp(prefix="mslab-hog-bench-"))
     times = {"quiet": [], "hog": []}
+    loads = {"quiet": [], "hog": []}
     marks = {}
     load0 = os.getloadavg()
     leftover = 0
@@ -81,6 +85,7 @@ def main() -> None:
         classes = {name: make_class(base, args.exercise, name == "hog") for name in times}
         for _ in range(args.repeats):
             for name, cls in classes.items():
+                loads[name].append(round(os.getloadavg()[0], 2))
                 t0 = time.perf_counter()
                 results = grade([cls], source=ROOT / "exercises", jobs=2, timeout=args.timeout,
                                 only=[args.exercise])
@@ -98,7 +103,7 @@ def main() -> None:
                                  f"{platform.system()} {platform.release()}",
                       "load_before": load0, "load_after": os.getloadavg(), "exercise": args.exercise,
                       "timeout": args.timeout, "jobs": 2, "isolation": marks.pop("isolation"),
-                      "resources": marks.pop("resources"), "times_s": times,
+                      "resources": marks.pop("resources"), "times_s": times, "load_before_each_run": loads,
                       "median_s": med, "ratio_hog_over_quiet": med["hog"] / med["quiet"],
                       "honest_full_marks": marks, "hog_loops_left_after_grading": leftover}, indent=1))
 
