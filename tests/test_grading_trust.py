@@ -53,6 +53,8 @@ CLASS_TIMEOUT = 0.5
 #: busy loops of the hog in the class (4x the cores of a 2-core machine; each restart of its
 #: sandbox forks them again, so more only slows its own grading)
 CLASS_HOG_LOOPS = 8
+#: marks in the command lines of the hogs' loops (the class's, the separate grading's)
+CLASS_HOG_MARK, HOG_MARK = "mslab-class-hog-loop", "mslab-hog-loop"
 MODES = [m for m in ("bwrap", "namespaces") if sys.platform.startswith("linux") and _probe(m)]
 
 MARKED_TEST = """
@@ -119,7 +121,7 @@ HOG = """
 import subprocess, sys
 for _ in range(LOOPS):
     try:
-        subprocess.Popen([sys.executable, "-c", "# mslab-hog-loop\\nwhile True: pass"],
+        subprocess.Popen([sys.executable, "-c", "# MARK\\nwhile True: pass"],
                          start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     except OSError:
         break
@@ -134,12 +136,13 @@ def real_stability_interval(A, b, tol=1e-12):
 """
 
 
-def _hog_loops() -> int:
+def _hog_loops(mark: str = HOG_MARK) -> int:
+    """Busy loops of a hog running now (found by the mark in their command line)."""
     n = 0
     for entry in Path("/proc").iterdir():
         if entry.name.isdigit():
             try:
-                n += b"mslab-hog-loop" in (entry / "cmdline").read_bytes()
+                n += mark.encode() in (entry / "cmdline").read_bytes()
             except OSError:
                 pass
     return n
@@ -211,7 +214,7 @@ def _honest_source(k: int) -> str:
 
 def _leftovers(pid: int) -> list[str]:
     """What a grading by process ``pid`` could leave behind: hog loops, folders, cgroups."""
-    left = [f"{n} hog loops"] if (n := _hog_loops()) else []
+    left = [f"{n} hog loops"] if (n := _hog_loops(CLASS_HOG_MARK)) else []
     left += [str(p) for p in Path(tempfile.gettempdir()).glob(f"mslab-grade-{pid}-*")]
     v2, v1 = cgroup_mounts()
     hierarchies = {"": v2} if v2 else {}
@@ -235,7 +238,7 @@ def graded_class(request, tmp_path_factory):
     src = _source_with_markers(base)
     cls = base / "class"
     sources = {name: textwrap.dedent(code) for name, code in LEAKERS.items()}
-    sources["hog"] = HOG.replace("LOOPS", str(CLASS_HOG_LOOPS))
+    sources["hog"] = HOG.replace("LOOPS", str(CLASS_HOG_LOOPS)).replace("MARK", CLASS_HOG_MARK)
     sources.update({f"honest{k:02d}": _honest_source(k) for k in range(30 - len(sources))})
     for name, text in sources.items():
         (cls / name / TARGET).mkdir(parents=True)
@@ -326,7 +329,7 @@ def test_hidden_reasons_are_fixed_phrases_per_kind(graded_class):
 @pytest.mark.skipif(not MODES, reason="no namespaces here: a hog's loops would outlive its sandbox")
 def test_a_cpu_hog_costs_an_honest_classmate_nothing(tmp_path):
     (tmp_path / "hog" / TARGET).mkdir(parents=True)
-    (tmp_path / "hog" / TARGET / MODULE).write_text(HOG.replace("LOOPS", "40"))
+    (tmp_path / "hog" / TARGET / MODULE).write_text(HOG.replace("LOOPS", "40").replace("MARK", HOG_MARK))
     (tmp_path / "honest" / TARGET).mkdir(parents=True)
     shutil.copyfile(SOURCE / TARGET / MODULE, tmp_path / "honest" / TARGET / MODULE)
     env = dict(os.environ, PYTHONPATH=str(ROOT))
