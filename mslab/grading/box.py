@@ -13,8 +13,8 @@ cgroup v2 (``pids``, ``memory``, ``cpu`` enabled): as root under the hierarchy's
 as another user inside its own cgroup when that is delegated to it (e.g. ``systemd-run
 --user --scope -p Delegate=yes mslab grade ...``): the grader moves itself into a leaf
 and makes the boxes its siblings (a leaf cannot be removed by the process inside it: the
-next grading removes those of graders that have ended). cgroup v1 (hybrid machines, root only): ``pids``,
-``memory``, ``cpu`` and ``cpuacct`` hierarchies.
+next grading removes those of graders that have ended). cgroup v1 (hybrid machines, root
+only): ``pids``, ``memory``, ``cpu`` and ``cpuacct`` hierarchies.
 """
 
 from __future__ import annotations
