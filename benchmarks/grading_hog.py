@@ -1,6 +1,7 @@
 """Grading time of a class of 30: quiet, and with one CPU hog among them (issue 20).
 
-Usage: ``python benchmarks/grading_hog.py [--repeats 3] [--exercise 07_stability_function]``.
+Usage: ``python benchmarks/grading_hog.py [--repeats 3] [--exercise 07_stability_function]``;
+writes ``benchmarks/grading_hog.json``. Nothing here is a test.
 Every student has the reference solution of the exercise; in the second class one of the
 30 instead forks 40 busy loops (each ``setsid``) at import and sleeps in every call. The
 runs alternate quiet/hog; the figure is the median of each, and their ratio. Prints one
@@ -99,13 +100,17 @@ def main() -> None:
     finally:
         shutil.rmtree(base, ignore_errors=True)
     med = {k: statistics.median(v) for k, v in times.items()}
-    print(json.dumps({"machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
-                                 f"{platform.system()} {platform.release()}",
-                      "load_before": load0, "load_after": os.getloadavg(), "exercise": args.exercise,
-                      "timeout": args.timeout, "jobs": 2, "isolation": marks.pop("isolation"),
-                      "resources": marks.pop("resources"), "times_s": times, "load_before_each_run": loads,
-                      "median_s": med, "ratio_hog_over_quiet": med["hog"] / med["quiet"],
-                      "honest_full_marks": marks, "hog_loops_left_after_grading": leftover}, indent=1))
+    machine = (f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
+               f"{platform.system()} {platform.release()}")
+    doc = {"date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), "machine": machine,
+           "load_before": load0, "load_after": os.getloadavg(), "exercise": args.exercise,
+           "timeout": args.timeout, "jobs": 2, "isolation": marks.pop("isolation"),
+           "resources": marks.pop("resources"), "times_s": times, "load_before_each_run": loads,
+           "median_s": med, "ratio_hog_over_quiet": med["hog"] / med["quiet"],
+           "honest_full_marks": marks, "hog_loops_left_after_grading": leftover}
+    text = json.dumps(doc, indent=1) + "\n"
+    (ROOT / "benchmarks" / "grading_hog.json").write_text(text)
+    print(text, end="")
 
 
 if __name__ == "__main__":
