@@ -272,10 +272,16 @@ def test_every_honest_student_has_full_marks(graded_class):
 
 
 def test_the_hog_hogged_and_scores_nothing(graded_class):
-    """Its hidden tests hit the CPU limit of its sandbox: its loops ran, inside its box."""
+    """Its hidden tests time out, on the CPU limit of its sandbox: its loops ran, in its box.
+
+    (On a machine so busy that the hog's box gets under a twentieth of a core, a test may
+    reach the wall-clock backstop first; at least one reaches the CPU limit.)
+    """
     hog = graded_class[0]["hog"]
     assert hog.total == 0
-    assert _reasons(hog) == {"hidden test: timed out (CPU time limit)"}
+    reasons = _reasons(hog)
+    assert reasons <= {"hidden test: timed out (CPU time limit)", "hidden test: timed out (wall-clock limit)"}
+    assert "hidden test: timed out (CPU time limit)" in reasons
 
 
 def test_nothing_outlives_grading(graded_class):
