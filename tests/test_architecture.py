@@ -9,12 +9,11 @@ Every ``import`` of ``mslab/`` is read with ``ast`` (top-level, inside functions
    the library (beyond the leaves);
 2. no import circle joins files of different folders.
 
-Where code that this test's authors do not own cannot follow a rule yet, the import is
-listed in :data:`KNOWN_UPWARD` or :data:`KNOWN_CIRCLE_EDGES` with the reason; remove an
-entry once its file is fixed (the test then fails on a stale entry, so the list stays true).
-Also checked: builder methods are visible to tools (attributes of ``SceneBuilder`` listed
-in its class body), the integrator discovery's exclusion list is right, and effects are
-picked by capability, never by name or class, outside ``effects/``.
+No exceptions: a lower layer that needs something from above gets it handed down (the
+order check of the registry, the predicted stable dt of the run's pre-check: both installed
+by ``mslab/__init__.py``). Also checked: builder methods are visible to tools (attributes
+of ``SceneBuilder`` listed in its class body), the integrator discovery's exclusion list is
+right, and effects are picked by capability, never by name or class, outside ``effects/``.
 """
 
 from __future__ import annotations
@@ -51,18 +50,6 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
 GRADING = "grading/"
 #: files of grading/ that talk to the library (the problems and their checks)
 GRADING_LIBRARY_FILES = ("grading/problems.py", "grading/checks.py")
-
-#: (importing file, imported file): upward imports in files owned elsewhere, to be removed
-KNOWN_UPWARD: dict[tuple[str, str], str] = {
-    ("stopping.py", "stability/__init__.py"):
-        "the run's pre-check asks the analysis for the predicted stable dt (its StabilityWarning and the "
-        "InstabilityError's message): pass the prediction in from above, or move the step-limit "
-        "check to a caller (the command line, Simulation's constructor in a higher layer)",
-}
-
-#: (importing file, imported file): edges of import circles across folders, to be removed
-KNOWN_CIRCLE_EDGES: dict[tuple[str, str], str] = {}
-
 
 def _layer_of(rel: str) -> int | None:
     """Index in LAYERS of the file ``rel`` (most specific pattern wins); None for grading/."""
@@ -160,11 +147,7 @@ def _upward_imports() -> dict[tuple[str, str], str]:
 
 def test_imports_go_down_the_layers():
     bad = _upward_imports()
-    unexpected = {k: v for k, v in bad.items() if k not in KNOWN_UPWARD}
-    assert not unexpected, "\n".join(f"mslab/{s} -> mslab/{d}: {why}"
-                                     for (s, d), why in sorted(unexpected.items()))
-    stale = [k for k in KNOWN_UPWARD if k not in bad]
-    assert not stale, f"fixed, remove from KNOWN_UPWARD: {stale}"
+    assert not bad, "\n".join(f"mslab/{s} -> mslab/{d}: {why}" for (s, d), why in sorted(bad.items()))
 
 
 def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
@@ -211,12 +194,8 @@ def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 
 def test_no_import_circle_across_folders():
-    known = KNOWN_CIRCLE_EDGES.keys() | KNOWN_UPWARD.keys()  # a known upward import is a known circle edge
-    graph = {src: {d for d in dst if (src, d) not in known} for src, dst in GRAPH.items()}
-    crossing = [c for c in _cycles(graph) if len({_folder(f) for f in c}) > 1]
+    crossing = [c for c in _cycles(GRAPH) if len({_folder(f) for f in c}) > 1]
     assert not crossing, "import circles across folders:\n" + "\n".join(", ".join(c) for c in crossing)
-    stale = [k for k in KNOWN_CIRCLE_EDGES if k[1] not in GRAPH.get(k[0], ())]
-    assert not stale, f"gone, remove from KNOWN_CIRCLE_EDGES: {stale}"
 
 
 def test_the_checker_sees_an_upward_import_and_a_circle():
@@ -264,18 +243,14 @@ def test_integrator_discovery_skips_exactly_the_framework_modules():
 EFFECT_CLASSES = ("Springs", "Gravity", "Damping", "Anchors", "Wind", "Plane", "Sphere", "PenaltyCollider")
 EFFECT_NAMES = ("springs", "gravity", "damping", "anchors", "wind", "plane", "sphere")
 
-#: files owned elsewhere that still pick an effect by class or name
-KNOWN_PICKS: dict[str, str] = {
-    "plots/scene.py": "draws the colliders it knows by name (plane, sphere; reads normal/offset, "
-                      "center/radius): needs a drawing capability on may_touch effects (plots/ owner)",
-    "commands/run.py": "selects the colliders to draw by name for plots/scene.py (as above)",
-}
-
-
 def _picks(rel: str) -> list[str]:
     """``isinstance(..., EffectClass)`` calls and comparisons of ``.name`` with an effect's name."""
+    return _picks_in(PACKAGE / rel)
+
+
+def _picks_in(path: Path) -> list[str]:
     out = []
-    for node in ast.walk(ast.parse((PACKAGE / rel).read_text())):
+    for node in ast.walk(ast.parse(path.read_text())):
         call = isinstance(node, ast.Call) and getattr(node.func, "id", None) == "isinstance"
         if call and len(node.args) == 2:
             names = {n.id for n in ast.walk(node.args[1]) if isinstance(n, ast.Name)}
@@ -291,9 +266,15 @@ def _picks(rel: str) -> list[str]:
 
 def test_effects_are_picked_by_capability_outside_effects():
     found = {rel: p for rel in GRAPH if not rel.startswith(("effects/", GRADING)) and (p := _picks(rel))}
-    unexpected = {rel: p for rel, p in found.items() if rel not in KNOWN_PICKS}
-    assert not unexpected, unexpected
-    assert set(KNOWN_PICKS) <= set(found), f"fixed, remove from KNOWN_PICKS: {set(KNOWN_PICKS) - set(found)}"
+    assert not found, found
+
+
+def test_the_pick_finder_sees_a_name_and_a_class(tmp_path):
+    """The capability rule on made-up code: it can fail."""
+    (tmp_path / "x.py").write_text("a = [e for e in s if e.name in ('plane', 'sphere')]\n"
+                                   "b = isinstance(e, Sphere)\n")
+    assert sorted(_picks_in(tmp_path / "x.py")) == [".name compared with ['plane', 'sphere']",
+                                                   "isinstance(..., Sphere)"]
 
 
 @pytest.mark.parametrize("dim", [2, 3])
@@ -333,6 +314,12 @@ def test_capabilities_declared_by_the_effects(dim):
             K = e.contact_jacobian(x).toarray()
             assert K.shape == (5 * dim, 5 * dim)
             np.testing.assert_allclose(np.diag(K)[dim - 1::dim], -1e3)
+        shape = e.outline()
+        if shape is not None:  # the plane's outline: no force on its surface, a penalty 0.01 below it
+            assert type(shape).__name__ == "Halfspace" and e.may_touch
+            p0 = (shape.offset * shape.normal)[None]
+            np.testing.assert_allclose(e.force(p0, zero[:1]), 0.0, atol=1e-12)
+            np.testing.assert_allclose(e.energy(p0 - 0.01 * shape.normal), 0.5e3 * 0.01**2, rtol=1e-9)
     kinds = {type(e).__name__: (e.hooke_springs() is not None, e.linear_drag() is not None,
                                 e.constant_force() is not None, e.may_touch) for e in scene.system.effects}
     assert kinds == {"Springs": (True, False, False, False), "Gravity": (False, False, True, False),

@@ -188,7 +188,7 @@ def save_outputs(folder: Path, traj: Trajectory, scene: Scene, animate: str | No
     files["energy_figure"] = save_figure(fig, folder / f"{name}_energy.png")
     springs = scene.springs()
     pairs = springs.springs if springs is not None else np.empty((0, 2), np.int64)
-    colliders = [e for e in scene.system.effects if e.name in ("plane", "sphere")]
+    colliders = [e for e in scene.system.effects if e.outline() is not None]
     ax = plot_configuration(traj.x[-1], pairs, pinned=scene.system.pinned, colliders=colliders)
     ax.set_title(f"{name} at t = {traj.t[-1]:.4g} s ({traj.stats.method})")
     files["final_figure"] = save_figure(ax.figure, folder / f"{name}_final.png")
