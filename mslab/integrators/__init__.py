@@ -26,7 +26,7 @@ from mslab.integrators.two_step import Leapfrog, Verlet
 #: modules of the package that define no method: families, Newton and linear algebra
 #: (``tests/test_architecture.py`` checks that every other module registers methods)
 _FRAMEWORK = {"base", "coefficients", "linear", "local_global", "local_step", "newton_matrix", "pcg",
-              "runge_kutta", "solvers", "splitting", "two_step"}
+              "polynomials", "runge_kutta", "solvers", "splitting", "two_step"}
 
 
 def discover() -> list[str]:

@@ -9,19 +9,21 @@ Explicit tableaux (``A`` strictly lower triangular) compute the stages one after
 other; implicit ones solve for them (:mod:`mslab.integrators.solvers`). The dissipated
 work is integrated with the same weights ``b_i`` from the power at each stage, so the
 energy ledger is as accurate as the method. The stability function
-``R(z) = det(I - zA + z 1 b^T) / det(I - zA)`` and the oscillator map ``R(dt J)`` are
-computed from the very arrays that step.
+``R(z) = det(I - zA + z 1 b^T) / det(I - zA)`` (:mod:`mslab.integrators.polynomials`) and
+the oscillator map ``R(dt J)`` are computed from the very coefficients that step.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable
+from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from mslab.integrators.base import Integrator
 from mslab.integrators.coefficients import as_given, frozen
+from mslab.integrators.polynomials import TableauPolynomials, exact_polynomials
 from mslab.state import State
 
 if TYPE_CHECKING:
@@ -47,25 +49,24 @@ class _RungeKutta(Integrator):
         if doc:
             self.__doc__ = doc
 
+    @cached_property
+    def polynomials(self) -> TableauPolynomials:
+        """``N``, ``D`` of ``R = N/D`` from the coefficients as given, exact (computed once per tableau)."""
+        return exact_polynomials(self.coefficients["A"], self.coefficients["b"])
+
     def stability_function(self, z: np.ndarray) -> np.ndarray:
-        """``R(z) = det(I - zA + z 1 b^T) / det(I - zA)``; inf at a pole (explicit: a polynomial)."""
+        """``R(z) = det(I - zA + z 1 b^T) / det(I - zA)``; inf at a pole (explicit: a polynomial).
+
+        Evaluated from :attr:`polynomials` (each coefficient rounded once to a float).
+        """
         z = np.asarray(z, dtype=complex)
-        A, b = self.A, self.b
-        s = b.size
-        if not np.any(np.triu(A)):  # explicit: (I - zA)^-1 = sum_k (zA)^k, a polynomial of degree s
-            coef = [1.0]
-            w = np.ones(s)
-            for _ in range(s):
-                coef.append(float(b @ w))
-                w = A @ w
-            return np.polynomial.polynomial.polyval(z, coef)
-        flat = z.ravel()
-        mats = np.eye(s)[None] - flat[:, None, None] * A[None]
-        num = np.linalg.det(mats + flat[:, None, None] * np.outer(np.ones(s), b)[None])
-        den = np.linalg.det(mats)
+        p = self.polynomials
+        num = np.polynomial.polynomial.polyval(z, p.N_float)
+        if len(p.D) == 1:  # explicit: D = 1
+            return num
+        den = np.polynomial.polynomial.polyval(z, p.D_float)
         with np.errstate(divide="ignore", invalid="ignore"):
-            R = np.where(den == 0, np.inf, num / np.where(den == 0, 1.0, den))
-        return R.reshape(z.shape)
+            return np.where(den == 0, np.inf, num / np.where(den == 0, 1.0, den))
 
     def oscillator_matrix(self, h_omega: np.ndarray, h_gamma: np.ndarray) -> np.ndarray:
         """``R(dt J)`` with ``dt J = [[0, 1], [-h_omega^2, -h_gamma]]`` on the state ``(x, dt v)``."""
