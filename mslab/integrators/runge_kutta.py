@@ -146,22 +146,32 @@ class ExplicitRK(_RungeKutta):
         """The generic compiled Runge-Kutta loop over ``A, b``."""
         return "explicit_rk", (self.A, self.b)
 
-    def step(self, system: System, state: State, dt: float) -> State:
-        """One step: ``s`` counted force evaluations."""
-        x, v = state.x, state.v
+    def stages(self, system: System, x: np.ndarray, v: np.ndarray, h: float, first: tuple | None = None,
+               hold_x: bool = False) -> tuple[list, list, list]:
+        """Run the explicit stage loop: ``Y_i = y_n + h sum_{j<i} A_ij K_j``, ``K_i = F(Y_i)``, in order.
+
+        Return the stage velocities, accelerations and powers. ``first``: ``(a, p)`` of the
+        first stage when already evaluated at ``(x, v)``. ``hold_x``: integrate ``v' = a(x, v)``
+        with ``x`` held fixed (a splitting's kick with velocity-dependent forces).
+        """
         vs: list[np.ndarray] = []
         accs: list[np.ndarray] = []
         powers: list[float] = []
-        for row in self._rows:
+        for i, row in enumerate(self._rows):
             xi, vi = x, v
             for j, aij in row:
-                xi = xi + (dt * aij) * vs[j]
-                vi = vi + (dt * aij) * accs[j]
-            a, p = system.rhs(xi, vi)
+                if not hold_x:
+                    xi = xi + (h * aij) * vs[j]
+                vi = vi + (h * aij) * accs[j]
+            a, p = first if i == 0 and first is not None else system.rhs(xi, vi)
             vs.append(vi)
             accs.append(a)
             powers.append(p)
-        return self._combine(state, vs, accs, powers, dt)
+        return vs, accs, powers
+
+    def step(self, system: System, state: State, dt: float) -> State:
+        """One step: ``s`` counted force evaluations."""
+        return self._combine(state, *self.stages(system, state.x, state.v, dt), dt)
 
 
 class ImplicitRK(_RungeKutta):

@@ -115,15 +115,7 @@ class Splitting(Integrator):
         if not system.velocity_dependent:
             return v + bh * a, p
         rk = self.kick_method
-        accs, powers = [a], [p]
-        for i in range(1, rk.n_stages):
-            vi = v
-            for j in range(i):
-                if rk.A[i, j] != 0.0:
-                    vi = vi + (bh * rk.A[i, j]) * accs[j]
-            a, p = system.rhs(x, vi)
-            accs.append(a)
-            powers.append(p)
+        _, accs, powers = rk.stages(system, x, v, bh, first=(a, p), hold_x=True)
         new, power = v, 0.0
         for bi, a, p in zip(rk.b, accs, powers, strict=True):
             if bi != 0.0:
