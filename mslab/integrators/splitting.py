@@ -156,11 +156,7 @@ class Splitting(Integrator):
                                     np.asarray(h_gamma, dtype=float))
         eye = np.broadcast_to(np.eye(2), w2.shape + (2, 2))
         rk = self.kick_method
-        # S(z) = sum_k (b_k^T A_k^k 1) z^k, a polynomial for the explicit tableau
-        coef, w = [], np.ones(rk.n_stages)
-        for _ in range(rk.n_stages):
-            coef.append(float(rk.b @ w))
-            w = rk.A @ w
+        coef = rk.polynomials.N_float[1:]  # S(z) = (R(z) - 1) / z for the explicit tableau: R = N
         M = eye.copy()
 
         def drift(a: float):
