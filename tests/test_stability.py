@@ -49,7 +49,7 @@ def test_R_is_the_determinant_formula_in_every_number_type(method):
     """The one stability polynomial (floats, Fractions, sympy) = ``det(I - zA + z 1 b^T) / det(I - zA)``."""
     from fractions import Fraction
 
-    from mslab.integrators.polynomials import stability_polynomials
+    from mslab.integrators.families.polynomials import stability_polynomials
 
     m = mslab.get_method(method)
     s = m.n_stages

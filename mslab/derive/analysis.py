@@ -22,7 +22,7 @@ from mslab.derive.conditions import OrderAboveLimit, rk_order, splitting_order
 from mslab.derive.reading import Reading, read
 from mslab.derive.runs import rk_series, run_series, splitting_series
 from mslab.derive.series import coeff, h, taylor, trunc, z
-from mslab.integrators.polynomials import stability_polynomials
+from mslab.integrators.families.polynomials import stability_polynomials
 
 if TYPE_CHECKING:
     from mslab.integrators.base import Integrator
@@ -191,7 +191,7 @@ def stability_function(method: str | Integrator) -> sp.Expr:
     """Amplification factor ``R(z)``, ``y_{n+1} = R(z) y_n`` on ``y' = lambda y`` (lecture notes, eq. 29).
 
     ``R(z) = det(I - z A + z 1 b^T) / det(I - z A)`` from the Butcher tableau, explicit or
-    implicit (:func:`mslab.integrators.polynomials.stability_polynomials` in sympy numbers),
+    implicit (:func:`mslab.integrators.families.polynomials.stability_polynomials` in sympy numbers),
     exact when the coefficients are: ``1 + z`` for forward Euler (lecture notes, eq. 32),
     ``1/(1 - z)`` for implicit Euler. ``z`` is :data:`mslab.derive.z`.
 

@@ -1,7 +1,7 @@
 """The imaginary stability limit of a Runge-Kutta tableau in exact rational arithmetic.
 
 With ``R = N/D`` (``N(z) = det(I - zA + z 1 b^T)``, ``D(z) = det(I - zA)``, from
-:mod:`mslab.integrators.polynomials`), ``|R(iy)| <= 1`` is ``E(u) = |N(iy)|^2 - |D(iy)|^2 <= 0``
+:mod:`mslab.integrators.families.polynomials`), ``|R(iy)| <= 1`` is ``E(u) = |N(iy)|^2 - |D(iy)|^2 <= 0``
 with ``u = y^2``, a polynomial of degree ``s``. Its coefficients are computed from the
 coefficients as given, as ``fractions.Fraction``: exact ones exactly, floats at their exact
 binary value. A
@@ -28,8 +28,12 @@ from typing import Any
 
 import numpy as np
 
-from mslab.integrators.coefficients import as_fraction
-from mslab.integrators.polynomials import TableauPolynomials, exact_polynomials, stability_polynomials
+from mslab.integrators.families.coefficients import as_fraction
+from mslab.integrators.families.polynomials import (
+    TableauPolynomials,
+    exact_polynomials,
+    stability_polynomials,
+)
 
 _EPS = float(np.finfo(float).eps)
 

@@ -25,7 +25,7 @@ from functools import lru_cache
 import numpy as np
 
 from mslab.integrators.base import Integrator, get_method
-from mslab.integrators.polynomials import exact_polynomials
+from mslab.integrators.families.polynomials import exact_polynomials
 from mslab.stability.exact import imag_limit_of
 from mslab.stability.functions import amplification, amplification_matrix, spectral_radius, tableau
 
@@ -65,7 +65,7 @@ def _ray_limit(rho: Callable[[np.ndarray], np.ndarray], chunk: int = 100) -> flo
 def rk_polynomials(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Coefficients (ascending, length s + 1) of ``N(z) = det(I - zA + z 1 b^T)``, ``D(z) = det(I - zA)``.
 
-    Of the float arrays as given, exactly (:func:`mslab.integrators.polynomials.exact_polynomials`),
+    Of the float arrays as given, exactly (:func:`mslab.integrators.families.polynomials.exact_polynomials`),
     each coefficient rounded once.
     """
     p = exact_polynomials(np.asarray(A, dtype=float).tolist(), np.asarray(b, dtype=float).tolist())

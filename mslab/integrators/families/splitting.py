@@ -35,11 +35,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from mslab.integrators.base import Integrator, get_method
-from mslab.integrators.coefficients import as_given, frozen
+from mslab.integrators.families.coefficients import as_given, frozen
 from mslab.state import State
 
 if TYPE_CHECKING:
-    from mslab.integrators.runge_kutta import ExplicitRK
+    from mslab.integrators.families.runge_kutta import ExplicitRK
     from mslab.system import System
 
 #: The explicit Runge-Kutta method that integrates a kick with velocity-dependent forces,

@@ -21,7 +21,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from mslab.integrators.coefficients import as_fraction
+from mslab.integrators.families.coefficients import as_fraction
 
 
 def stability_polynomials(A: Sequence[Sequence[Any]], b: Sequence[Any]) -> tuple[list, list]:

@@ -6,10 +6,10 @@ For ``y = (x, v)`` and ``y' = F(y) = (v, a(x, v))`` a method with ``s`` stages s
     y_{n+1} = y_n + h sum_i b_i K_i
 
 Explicit tableaux (``A`` strictly lower triangular) compute the stages one after the
-other; implicit ones solve for them (:mod:`mslab.integrators.solvers`). The dissipated
+other; implicit ones solve for them (:mod:`mslab.integrators.newton.solvers`). The dissipated
 work is integrated with the same weights ``b_i`` from the power at each stage, so the
 energy ledger is as accurate as the method. The stability function
-``R(z) = det(I - zA + z 1 b^T) / det(I - zA)`` (:mod:`mslab.integrators.polynomials`) and
+``R(z) = det(I - zA + z 1 b^T) / det(I - zA)`` (:mod:`mslab.integrators.families.polynomials`) and
 the oscillator map ``R(dt J)`` are computed from the very coefficients that step.
 """
 
@@ -22,8 +22,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from mslab.integrators.base import Integrator
-from mslab.integrators.coefficients import as_given, frozen
-from mslab.integrators.polynomials import TableauPolynomials, exact_polynomials
+from mslab.integrators.families.coefficients import as_given, frozen
+from mslab.integrators.families.polynomials import TableauPolynomials, exact_polynomials
 from mslab.state import State
 
 if TYPE_CHECKING:
@@ -182,14 +182,14 @@ class ImplicitRK(_RungeKutta):
     then ``x_{n+1} = x_n + h sum_i b_i V_i``, ``v_{n+1} = v_n + h sum_i b_i a(X_i, V_i)``.
 
     ``solver="newton"`` (default) solves for the ``V_i`` by Newton's method with the
-    effects' Jacobians (:func:`mslab.integrators.solvers.newton_stages`): stage by stage
+    effects' Jacobians (:func:`mslab.integrators.newton.solvers.newton_stages`): stage by stage
     when ``A`` is lower triangular (DIRK), all stages at once otherwise.
     ``solver="fixed_point"`` iterates ``Y <- y_n + h A F(Y)``, which needs only force
     evaluations but converges only while ``h L |A| < 1``. ``solver="linearised"`` takes one
     Newton step per stage from ``V = v^`` and stops there (Baraff and Witkin's linearised
     implicit Euler): exact on linear forces, an ``O(h^2)`` local deviation otherwise.
     ``linear_solver`` chooses how Newton's linear systems are solved
-    (:mod:`mslab.integrators.linear`): ``"auto"`` keeps and reuses factorisations above
+    (:mod:`mslab.integrators.newton.linear`): ``"auto"`` keeps and reuses factorisations above
     300 unknowns, ``"reuse"`` always, ``"fresh"`` factors every Newton matrix.
 
     Cost per step: Newton — per iteration one force evaluation, one Jacobian and one linear
@@ -221,7 +221,7 @@ class ImplicitRK(_RungeKutta):
         super().__init__(A, b, c, name, order, doc)
         if solver not in ("newton", "fixed_point", "linearised"):
             raise ValueError(f"solver must be 'newton', 'fixed_point' or 'linearised', got {solver!r}")
-        from mslab.integrators.linear import POLICIES
+        from mslab.integrators.newton.linear import POLICIES
 
         if linear_solver not in POLICIES:
             raise ValueError(f"linear_solver must be one of {POLICIES}, got {linear_solver!r}")
@@ -254,7 +254,7 @@ class ImplicitRK(_RungeKutta):
 
     def step(self, system: System, state: State, dt: float) -> State:
         """One step: solve for the stages, then combine them with ``b``."""
-        from mslab.integrators import solvers
+        from mslab.integrators.newton import solvers
 
         if self.solver == "fixed_point":
             vs, accs, powers = solvers.fixed_point_stages(self, system, state, dt)

@@ -3,7 +3,7 @@
 A method is its coefficients. The stepping code and the stability analysis read float
 arrays; :mod:`mslab.derive` reads the coefficients *as given* (``Fraction``, sympy
 numbers and expressions, strings such as ``"19372/6561"``, ints or floats), so exact
-ones stay exact there (and in :mod:`mslab.integrators.polynomials`, as ``Fraction``).
+ones stay exact there (and in :mod:`mslab.integrators.families.polynomials`, as ``Fraction``).
 Both are made once here, when a method is created, and frozen.
 """
 
