@@ -35,7 +35,7 @@ import numpy as np
 import scipy.sparse as sp
 
 import mslab
-from mslab.integrators.local_global import LocalGlobal, global_step
+from mslab.integrators.families.local_global import LocalGlobal, global_step
 from mslab.state import State
 from mslab.threads import single_threaded_blas
 

@@ -126,7 +126,7 @@ def main() -> int:
         "  scene's own effect kernels (springs, gravity, damping, anchors), composed into one cached",
         "  module per combination. `backend=\"numpy\"` keeps the readable reference;",
         "  `tests/test_fast.py` holds both equal to 1e-12.",
-        "- Implicit Euler (`mslab/integrators/linear.py`): Newton's matrices are assembled on a kept",
+        "- Implicit Euler (`mslab/integrators/newton/linear.py`): Newton's matrices are assembled on a kept",
         "  pattern and factored by CHOLMOD with its symbolic analysis kept (section \"Implicit methods",
         "  at cloth scale\" below has the benchmark of issue 12). The table's sparse-solve row is",
         "  scipy's `spsolve` (SuperLU) of the same size, for comparison; the spring Jacobian's",

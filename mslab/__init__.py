@@ -23,6 +23,7 @@ from mslab.integrators.base import set_order_check
 from mslab.scenes import Scene, SceneBuilder, Settings, load_scene, scene_names
 from mslab.simulate import Simulation, SimulationInterrupted, simulate
 from mslab.state import State
+from mslab.stopping import set_stable_dt_predictor
 from mslab.system import System
 from mslab.trajectory import Energy, Stats, Trajectory
 
@@ -39,11 +40,21 @@ def _check_declared_order(method: Integrator) -> None:
 set_order_check(_check_declared_order)
 
 
+def _predicted_stable_dt(scene: Scene, method: Integrator) -> float | None:
+    """Return the run pre-check's stable dt (mslab.stability sits above it: wired here, loaded on use)."""
+    from mslab.stability import predicted_stable_dt
+
+    return predicted_stable_dt(scene, method)
+
+
+set_stable_dt_predictor(_predicted_stable_dt)
+
+
 def __getattr__(name: str):
     """``mslab.stability``, ``mslab.derive``, ``mslab.precision``, ``mslab.plots`` on first use.
 
     They import scipy.linalg, sympy, scipy.integrate and matplotlib, which a plain run
-    never needs (``import mslab`` stays cheap; issue 14).
+    never needs (``import mslab`` stays cheap).
     """
     if name in ("stability", "derive", "precision", "plots"):
         import importlib

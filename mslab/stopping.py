@@ -11,13 +11,15 @@ stops at the same step with the same message:
   swinging through zero length, a contact bouncing) keeps the positions bounded but makes
   ``E`` grow. The check reads ``E`` every :attr:`LedgerCheck.every` steps;
 * **the pre-check** (:func:`check_stability`): an explicit method's predicted stable dt,
-  quoted in every message.
+  quoted in every message. The prediction is :mod:`mslab.stability`'s, a layer above this
+  one: ``mslab/__init__.py`` hands it down with :func:`set_stable_dt_predictor`.
 """
 
 from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -44,6 +46,16 @@ PLATEAU = 4.0
 FLOOR = 1e-10
 
 
+#: ``predict(scene, integrator) -> stable dt or None`` (installed from above; None: no prediction)
+_predict: Callable[[Scene, Integrator], float | None] | None = None
+
+
+def set_stable_dt_predictor(predict: Callable[[Scene, Integrator], float | None] | None) -> None:
+    """Install the predicted stable dt of the pre-check (``mslab.stability`` sits above this module)."""
+    global _predict
+    _predict = predict
+
+
 def position_limit(scene: Scene, blowup: float) -> float:
     """Return the largest |position| a run may reach: ``blowup * (1 + max |x0|)``."""
     return blowup * (1.0 + float(np.max(np.abs(scene.state0.x))))
@@ -60,11 +72,15 @@ def hint(stable_dt: float | None) -> str:
 
 def check_stability(scene: Scene, integrator: Integrator, dt: float, stable_dt: float | None,
                     stacklevel: int) -> float | None:
-    """Return the predicted stable dt (or the given one); warn when dt exceeds it. Counts no work."""
-    from mslab.stability import predicted_stable_dt
+    """Return the predicted stable dt (or the given one); warn when dt exceeds it. Counts no work.
+
+    Without a predictor installed (:func:`set_stable_dt_predictor`) there is nothing to check.
+    """
     from mslab.threads import single_threaded_blas
 
-    predicted = single_threaded_blas(predicted_stable_dt)(scene, integrator)
+    if _predict is None:
+        return stable_dt
+    predicted = single_threaded_blas(_predict)(scene, integrator)
     if predicted is not None and dt > predicted:
         what = (f"{integrator.name} has no stable dt on this scene: its undamped oscillations grow "
                 f"at every dt (slowly when dt is small)"

@@ -147,7 +147,7 @@ class System:
         """Each effect's ``df/dx`` and ``df/dv`` (CSR), unsummed: two lists, absent terms left out.
 
         Newton's linear solver sums them into its own kept pattern
-        (:mod:`mslab.integrators.newton_matrix`). Counts one n_jac.
+        (:mod:`mslab.integrators.newton.newton_matrix`). Counts one n_jac.
         """
         self.counters.n_jac += 1
         stiff, damp = [], []

@@ -12,8 +12,9 @@ import pytest
 import mslab
 from mslab import stability
 from mslab.errors import InstabilityError
-from mslab.integrators import ImplicitRK, linear, newton_matrix
-from mslab.integrators.local_global import LocalGlobal
+from mslab.integrators import ImplicitRK
+from mslab.integrators.families.local_global import LocalGlobal
+from mslab.integrators.newton import linear, newton_matrix
 from mslab.scenes.generators import cloth
 from mslab.scenes.loader import scene_path
 from mslab.scenes.toml_read import read_scene_file
@@ -242,7 +243,7 @@ def test_friction_makes_the_newton_matrix_nonsymmetric_and_lu_solves_it():
     The cloth falling onto a ball with friction (lesson 08) converges at dt = 10 ms with fresh
     and with kept factorisations, and the factor kind says LU.
     """
-    from mslab.integrators import linear, newton_matrix
+    from mslab.integrators.newton import linear, newton_matrix
 
     scene = mslab.load_scene("cloth_on_sphere")
     for policy in ("fresh", "reuse"):
@@ -261,7 +262,7 @@ def test_friction_makes_the_newton_matrix_nonsymmetric_and_lu_solves_it():
 # -- fast mass-spring: compiled iteration, Chebyshev acceleration (issue 22) ------------------------------
 def test_compiled_local_step_equals_numpy():
     """The compiled pass (local step, right-hand side, update) against vectorised numpy, to 1e-12."""
-    from mslab.integrators import local_step
+    from mslab.integrators.families import local_step
 
     scene = scaled_cloth(9)
     s = scene.system
@@ -315,7 +316,7 @@ def test_chebyshev_has_the_plain_fixed_point_and_converges_to_implicit_euler():
 def test_chebyshev_counts_its_setup_and_keeps_the_contract():
     """Counters exact (the spectral radius estimate once per system and dt), pins still, momentum,
     a fully pinned scene still."""
-    from mslab.integrators.local_global import POWER_ITERATIONS
+    from mslab.integrators.families.local_global import POWER_ITERATIONS
 
     scene = mslab.load_scene("cloth")
     s = scene.system

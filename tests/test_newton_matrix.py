@@ -15,8 +15,8 @@ import mslab
 from mslab.effects.springs import Springs
 from mslab.fast.model import ForceModel
 from mslab.fast.newton import CompiledSystem
-from mslab.integrators import linear, newton_matrix
-from mslab.integrators.newton_matrix import FreePattern, cholmod_module
+from mslab.integrators.newton import linear, newton_matrix
+from mslab.integrators.newton.newton_matrix import FreePattern, cholmod_module
 from mslab.scenes.generators import chain, cloth
 
 

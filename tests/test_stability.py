@@ -41,6 +41,28 @@ def test_sympy_R_matches_closed_form(method):
     assert sympy.simplify(expr - sympy.nsimplify(exact)) == 0
 
 
+RK_METHODS = [m for m in mslab.methods() if "A" in mslab.get_method(m).coefficients]
+
+
+@pytest.mark.parametrize("method", RK_METHODS)
+def test_R_is_the_determinant_formula_in_every_number_type(method):
+    """The one stability polynomial (floats, Fractions, sympy) = ``det(I - zA + z 1 b^T) / det(I - zA)``."""
+    from fractions import Fraction
+
+    from mslab.integrators.families.polynomials import stability_polynomials
+
+    m = mslab.get_method(method)
+    s = m.n_stages
+    mats = np.eye(s)[None] - Z[:, None, None] * m.A[None]
+    direct = np.linalg.det(mats + Z[:, None, None] * np.outer(np.ones(s), m.b)[None]) / np.linalg.det(mats)
+    np.testing.assert_allclose(m.stability_function(Z), direct, rtol=1e-12)
+    for number in (float, Fraction, sympy.nsimplify):
+        N, D = stability_polynomials([[number(a) for a in row] for row in m.A.tolist()],
+                                     [number(w) for w in m.b.tolist()])
+        num, den = (np.polynomial.polynomial.polyval(Z, np.array(p, dtype=complex)) for p in (N, D))
+        np.testing.assert_allclose(num / den, direct, rtol=1e-12)
+
+
 def test_sympy_refuses_partitioned_methods():
     with pytest.raises(TypeError, match="amplification_matrix"):
         st.amplification_sympy("verlet")

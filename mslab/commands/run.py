@@ -188,7 +188,7 @@ def save_outputs(folder: Path, traj: Trajectory, scene: Scene, animate: str | No
     files["energy_figure"] = save_figure(fig, folder / f"{name}_energy.png")
     springs = scene.springs()
     pairs = springs.springs if springs is not None else np.empty((0, 2), np.int64)
-    colliders = [e for e in scene.system.effects if e.name in ("plane", "sphere")]
+    colliders = [e for e in scene.system.effects if e.outline() is not None]
     ax = plot_configuration(traj.x[-1], pairs, pinned=scene.system.pinned, colliders=colliders)
     ax.set_title(f"{name} at t = {traj.t[-1]:.4g} s ({traj.stats.method})")
     files["final_figure"] = save_figure(ax.figure, folder / f"{name}_final.png")
@@ -258,13 +258,54 @@ def _report(args: argparse.Namespace, scene: Scene, traj: Trajectory, predicted:
     return doc
 
 
+def _simulate(args: argparse.Namespace, scene: Scene, method: str, cost: RunCost, predicted: float | None,
+              notes: list[str]) -> tuple[Trajectory, int, str]:
+    """Run the scene with progress by the clock and warnings as they arise (added to ``notes``).
+
+    Return the trajectory (partial when the run stopped), the exit code and the failure's line.
+    """
+    from mslab.errors import InstabilityError, StabilityWarning
+    from mslab.progress import Progress, duration
+    from mslab.simulate import SimulationInterrupted, simulate
+
+    def estimate(total: float, done: int) -> None:
+        bar.write(f"estimate: about {duration(total)} for {cost.steps} steps (from {bar.measured()} "
+                  f"steps after the first)", file=sys.stdout)
+
+    code, failure = 0, ""
+    bar = Progress(cost.steps, method, on_estimate=None if args.json else estimate)
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", StabilityWarning)
+        shown = warnings.showwarning
+
+        def show(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+                 file: TextIO | None = None, line: str | None = None):
+            if not issubclass(category, StabilityWarning):
+                return shown(message, category, filename, lineno, file, line)
+            notes.append(str(message))
+            if not args.json:
+                bar.write(f"mslab: warning: {message}")
+
+        warnings.showwarning = show
+        try:
+            traj = simulate(scene, progress=bar, stable_dt=None if predicted == math.inf else predicted)
+        except SimulationInterrupted as stop:
+            traj, code = stop.trajectory, EXIT_INTERRUPTED
+        except InstabilityError as err:
+            if err.trajectory is None:
+                raise
+            traj, code = err.trajectory, EXIT_UNSTABLE
+            failure = str(err).splitlines()[0]
+            notes.append(failure)
+        finally:
+            bar.close()
+    return traj, code, failure
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``mslab run`` with the parsed ``args``; return the exit code."""
     from mslab.budget import memory_problem, run_cost, size_text
-    from mslab.errors import InstabilityError, StabilityWarning
-    from mslab.progress import Progress, duration
     from mslab.scenes.loader import load_scene
-    from mslab.simulate import SimulationInterrupted, simulate
 
     # -- cheap checks first: options, tools, the scene file, the run's size --------------------------
     problem = animation_problem(args.animate)
@@ -306,38 +347,7 @@ def run(args: argparse.Namespace) -> int:
         say(args, f"running {method} on {scene.name} ...")
         sys.stdout.flush()
 
-    # -- the run: progress by the clock, warnings as they arise ----------------------------------------
-    def estimate(total: float, done: int) -> None:
-        bar.write(f"estimate: about {duration(total)} for {cost.steps} steps (from {bar.measured()} "
-                  f"steps after the first)", file=sys.stdout)
-
-    code, failure = 0, ""
-    bar = Progress(cost.steps, method, on_estimate=None if args.json else estimate)
-    with warnings.catch_warnings():
-        warnings.simplefilter("always", StabilityWarning)
-        shown = warnings.showwarning
-
-        def show(message: Warning | str, category: type[Warning], filename: str, lineno: int,
-                 file: TextIO | None = None, line: str | None = None):
-            if not issubclass(category, StabilityWarning):
-                return shown(message, category, filename, lineno, file, line)
-            notes.append(str(message))
-            if not args.json:
-                bar.write(f"mslab: warning: {message}")
-
-        warnings.showwarning = show
-        try:
-            traj = simulate(scene, progress=bar, stable_dt=None if predicted == math.inf else predicted)
-        except SimulationInterrupted as stop:
-            traj, code = stop.trajectory, EXIT_INTERRUPTED
-        except InstabilityError as err:
-            if err.trajectory is None:
-                raise
-            traj, code = err.trajectory, EXIT_UNSTABLE
-            failure = str(err).splitlines()[0]
-            notes.append(failure)
-        finally:
-            bar.close()
+    traj, code, failure = _simulate(args, scene, method, cost, predicted, notes)
 
     # -- outputs ---------------------------------------------------------------------------------------
     files: dict = {}

@@ -22,6 +22,7 @@ from mslab.derive.conditions import OrderAboveLimit, rk_order, splitting_order
 from mslab.derive.reading import Reading, read
 from mslab.derive.runs import rk_series, run_series, splitting_series
 from mslab.derive.series import coeff, h, taylor, trunc, z
+from mslab.integrators.families.polynomials import stability_polynomials
 
 if TYPE_CHECKING:
     from mslab.integrators.base import Integrator
@@ -190,7 +191,8 @@ def stability_function(method: str | Integrator) -> sp.Expr:
     """Amplification factor ``R(z)``, ``y_{n+1} = R(z) y_n`` on ``y' = lambda y`` (lecture notes, eq. 29).
 
     ``R(z) = det(I - z A + z 1 b^T) / det(I - z A)`` from the Butcher tableau, explicit or
-    implicit, exact when the coefficients are: ``1 + z`` for forward Euler (lecture notes, eq. 32),
+    implicit (:func:`mslab.integrators.families.polynomials.stability_polynomials` in sympy numbers),
+    exact when the coefficients are: ``1 + z`` for forward Euler (lecture notes, eq. 32),
     ``1/(1 - z)`` for implicit Euler. ``z`` is :data:`mslab.derive.z`.
 
     Raises
@@ -202,10 +204,7 @@ def stability_function(method: str | Integrator) -> sp.Expr:
     if r.kind != "rk":
         raise TypeError(f"{r.name}: stability_function covers Runge-Kutta tableaux; "
                         "see mslab.stability for the other methods")
-    A = sp.Matrix([[display(a) for a in row] for row in r.A])
-    b = sp.Matrix([[display(w) for w in r.b]])
-    s = len(r.b)
-    eye, ones = sp.eye(s), sp.ones(s, 1)
-    num = sp.expand((eye - z * A + z * ones * b).det(method="berkowitz"))
-    den = sp.expand((eye - z * A).det(method="berkowitz"))
+    N, D = stability_polynomials([[display(a) for a in row] for row in r.A], [display(w) for w in r.b])
+    num = sp.expand(sum(sp.expand(c) * z**k for k, c in enumerate(N)))
+    den = sp.expand(sum(sp.expand(c) * z**k for k, c in enumerate(D)))
     return sp.simplify(num / den)

@@ -32,7 +32,9 @@ asks what an effect declares (None or False: "not this kind of force")
   fast mass-spring method, implicit Euler's objective for Newton's line search);
 * :meth:`Effect.constant_force` — the force when it is one fixed array (gravity);
 * :attr:`Effect.may_touch` and :meth:`Effect.contact_jacobian` — a contact force that
-  switches on where particles touch (the stability analysis of possible contacts).
+  switches on where particles touch (the stability analysis of possible contacts);
+* :meth:`Effect.outline` — the solid an effect stands for, :class:`Halfspace` or
+  :class:`Ball` (the plots draw it).
 
 Effects import nothing above them: the builder they record into is the protocol
 :class:`Builder` (implemented by :class:`mslab.scenes.builder.SceneBuilder`).
@@ -102,6 +104,20 @@ class HookeSprings(NamedTuple):
     stiffness: np.ndarray
     rest_length: np.ndarray
     kind: np.ndarray
+
+
+class Halfspace(NamedTuple):
+    """The solid ``normal . x <= offset`` behind the plane ``normal . x = offset`` (unit ``normal``)."""
+
+    normal: np.ndarray
+    offset: float
+
+
+class Ball(NamedTuple):
+    """The ball (a disc in 2D) of centre ``center``, shape (dim,), and radius ``radius``."""
+
+    center: np.ndarray
+    radius: float
 
 
 @dataclass(frozen=True)
@@ -259,6 +275,10 @@ class Effect:
         of possible contacts uses it. Only for ``may_touch`` effects.
         """
         raise NotImplementedError(f"effect '{self.name}' is not a contact force")
+
+    def outline(self) -> Halfspace | Ball | None:
+        """Return the solid the effect stands for (a collider's), to be drawn; None (default): none."""
+        return None
 
     def kernel_params(self) -> tuple:
         """Trailing arguments of :attr:`kernel`: contiguous float64/int64 arrays and scalars."""

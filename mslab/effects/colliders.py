@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mslab.effects.base import BuildContext, Builder, Effect, block_diagonal
+from mslab.effects.base import Ball, BuildContext, Builder, Effect, Halfspace, block_diagonal
 from mslab.effects.registry import register
 from mslab.effects.schema import Key
 from mslab.errors import SceneError
@@ -261,6 +261,10 @@ class Plane(PenaltyCollider):
     def _geometry(self) -> tuple[int, np.ndarray, float]:
         return 0, self.normal, self.offset
 
+    def outline(self) -> Halfspace:
+        """Return the half-space below the plane (capability: the plots draw it)."""
+        return Halfspace(self.normal, self.offset)
+
     @staticmethod
     def add_plane(builder: Builder, normal: npt.ArrayLike, offset: float, stiffness: float,
                   friction: float = 0.0, slip_velocity: float = 1e-3) -> None:
@@ -331,6 +335,10 @@ class Sphere(PenaltyCollider):
 
     def _geometry(self) -> tuple[int, np.ndarray, float]:
         return 1, self.center, self.radius
+
+    def outline(self) -> Ball:
+        """Return the ball (capability: the plots draw it)."""
+        return Ball(self.center, self.radius)
 
     @staticmethod
     def add_sphere(builder: Builder, center: npt.ArrayLike, radius: float, stiffness: float,

@@ -8,7 +8,7 @@ inlines the kernels into the loops and caches them (a later process loads them i
 fraction of a second). Nothing here knows any effect. Arrays are float64, C-contiguous: positions ``x``
 and velocities ``v`` of shape ``(n_particles, dim)``.
 
-The loops are lean (issue 14): forces accumulate into a scratch array ``f`` that holds the
+The loops are lean: forces accumulate into a scratch array ``f`` that holds the
 scene's constant forces ``f0`` between uses (gravity: see :class:`mslab.fast.ForceModel`),
 restored by each pass that reads ``f``, so there is neither a zeroing nor a gravity pass;
 a kick, the following drift and the blow-up test of the step share one pass over the

@@ -61,6 +61,10 @@ class Problem:
         self.n_calls += 1
         x = np.asarray(x, dtype=float)
         v = np.zeros_like(x) if v is None else np.asarray(v, dtype=float)
+        # Hooke's law written here again, not mslab.effects.springs.Springs.force: this file is
+        # copied into the grading sandbox (isolation.SANDBOX_FILES), which imports numpy but not
+        # mslab, and it is the independent reference the library's springs are tested against
+        # (tests/test_grading.py, test_problems_agree_with_the_library).
         d = x[self.springs[:, 0]] - x[self.springs[:, 1]]
         length = np.linalg.norm(d, axis=1)
         fpair = (self.stiffness * (self.rest_length - length) / length)[:, None] * d

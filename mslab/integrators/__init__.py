@@ -1,14 +1,18 @@
-"""Time integrators: three families of coefficients and the adapters of the course.
+"""Time integrators, in three folders that say what they hold.
 
-* :class:`ExplicitRK`, :class:`ImplicitRK` — Butcher tableaux (``runge_kutta.py``),
-  the implicit ones solved by Newton or fixed-point iteration (``solvers.py``);
-* :class:`Splitting` — drift/kick coefficients (``splitting.py``);
-* :class:`Verlet`, :class:`Leapfrog` — the course's two-step and staggered forms of a
-  splitting (``two_step.py``).
+* ``families/`` — one class per family, one stepping code path each: :class:`ExplicitRK`,
+  :class:`ImplicitRK` (Butcher tableaux, ``runge_kutta.py``), :class:`Splitting` (drift/kick
+  coefficients, ``splitting.py``), :class:`Verlet`, :class:`Leapfrog` (the course's two-step
+  and staggered forms of a splitting, ``two_step.py``), the local/global iteration;
+* ``catalogue/`` — the built-in methods: modules that hold coefficients and register them;
+* ``newton/`` — Newton and fixed-point iteration for the implicit stages, and the linear
+  algebra of Newton's systems.
 
-Every other module of this package defines methods (instances holding coefficients) and
-registers them; all of them are imported here, so a new file with a ``register(...)`` call
-is picked up with no other edit.
+``base.py`` holds the :class:`Integrator` protocol and the registry. Every module of
+``catalogue/`` and every module saved next to this file (a user's own method,
+``docs/extending.md``) is imported here, so a new file with a ``register(...)`` call is
+picked up with no other edit. The modules of the families and of ``newton/`` stay reachable
+by their short names (``from mslab.integrators import linear, solvers``), loaded on first use.
 """
 
 import importlib
@@ -19,14 +23,20 @@ import sys
 from mslab.errors import failure_line, note_broken
 from mslab.integrators import base
 from mslab.integrators.base import COURSE_METHODS, FAMILIES, Integrator, get_method, methods, register
-from mslab.integrators.runge_kutta import ExplicitRK, ImplicitRK
-from mslab.integrators.splitting import Splitting
-from mslab.integrators.two_step import Leapfrog, Verlet
+from mslab.integrators.families.runge_kutta import ExplicitRK, ImplicitRK
+from mslab.integrators.families.splitting import Splitting
+from mslab.integrators.families.two_step import Leapfrog, Verlet
 
-#: modules of the package that define no method: families, Newton and linear algebra
-#: (``tests/test_architecture.py`` checks that every other module registers methods)
-_FRAMEWORK = {"base", "coefficients", "linear", "local_global", "local_step", "newton_matrix", "pcg",
-              "runge_kutta", "solvers", "splitting", "two_step"}
+#: modules next to this file that define no method (``tests/test_architecture.py`` checks that
+#: every module of ``catalogue/`` and every other module here registers methods)
+_FRAMEWORK = {"base"}
+
+#: the modules of the families and of newton/ by their short names (``from mslab.integrators import
+#: solvers``), imported on first use: ``import mslab`` loads no linear algebra
+_FOLDER_OF = {"coefficients": "families", "polynomials": "families", "runge_kutta": "families",
+              "splitting": "families", "two_step": "families", "local_global": "families",
+              "local_step": "families", "linear": "newton", "newton_matrix": "newton", "pcg": "newton",
+              "solvers": "newton"}
 
 
 def discover() -> list[str]:
@@ -39,23 +49,39 @@ def discover() -> list[str]:
     by the next lookup of a method; the other methods keep working.
     """
     found = []
-    for info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
-        name = f"{__name__}.{info.name}"
-        if info.name in _FRAMEWORK or info.name.startswith("_") or name in sys.modules or name in _FAILED:
-            continue
-        before = set(base._REGISTRY)
-        try:
-            importlib.import_module(name)
-        except Exception as err:  # noqa: BLE001 - any error in a user's file: skip the file
-            sys.modules.pop(name, None)
-            for added in set(base._REGISTRY) - before:
-                del base._REGISTRY[added]
-            _FAILED.add(name)
-            path = os.path.join(getattr(info.module_finder, "path", ""), f"{info.name}.py")
-            note_broken(failure_line(err, path))
-            continue
-        found.append(info.name)
+    catalogue = importlib.import_module(f"{__name__}.catalogue")
+    for package in (catalogue, sys.modules[__name__]):
+        for info in sorted(pkgutil.iter_modules(package.__path__), key=lambda m: m.name):
+            name = f"{package.__name__}.{info.name}"
+            if (info.ispkg or info.name in _FRAMEWORK or info.name.startswith("_") or name in sys.modules
+                    or name in _FAILED):
+                continue
+            if _import_method_module(name, os.path.join(getattr(info.module_finder, "path", ""),
+                                                        f"{info.name}.py")):
+                found.append(info.name)
     return found
+
+
+def _import_method_module(name: str, path: str) -> bool:
+    """Import one method module; on any error forget what it registered, note one line, return False."""
+    before = set(base._REGISTRY)
+    try:
+        importlib.import_module(name)
+    except Exception as err:  # noqa: BLE001 - any error in a user's file: skip the file
+        sys.modules.pop(name, None)
+        for added in set(base._REGISTRY) - before:
+            del base._REGISTRY[added]
+        _FAILED.add(name)
+        note_broken(failure_line(err, path))
+        return False
+    return True
+
+
+def __getattr__(name: str):
+    """Return a module of the families or of newton/ by its short name, imported on first use."""
+    if name in _FOLDER_OF:
+        return importlib.import_module(f"{__name__}.{_FOLDER_OF[name]}.{name}")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 _FAILED: set[str] = set()

@@ -117,7 +117,7 @@ _PENDING: list[tuple[Integrator, str, int]] = []
 #: The package's own method modules. Their declared orders are held equal to the derived
 #: ones by the tests (``tests/test_derive.py``) instead of at every import, which would load
 #: sympy on ``import mslab``; every other registration derives its order when it is made.
-BUILT_IN_MODULES = ("explicit_tableaux", "implicit_tableaux", "splittings", "verlet_leapfrog",
+BUILT_IN_MODULES = ("explicit_tableaux", "implicit_tableaux", "symplectic", "verlet_leapfrog",
                     "fast_mass_spring")
 
 
@@ -146,7 +146,8 @@ def register(method: Integrator) -> Integrator:
     _check_name(method.name, origin)
     _check_consistent(method)
     path = Path(origin[0])
-    built_in = path.stem in BUILT_IN_MODULES and path.resolve().parent == Path(__file__).resolve().parent
+    catalogue = Path(__file__).resolve().parent / "catalogue"
+    built_in = path.stem in BUILT_IN_MODULES and path.resolve().parent == catalogue
     has_coefficients = bool({"A", "drift"} & set(method.coefficients))
     if has_coefficients and not built_in:
         if _order_check is not None:

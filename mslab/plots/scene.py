@@ -10,6 +10,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.collections import LineCollection
 
+from mslab.effects.base import Ball, Halfspace
+
 if TYPE_CHECKING:
     import numpy.typing as npt
     from matplotlib.axes import Axes
@@ -36,21 +38,23 @@ def _limits(points: np.ndarray, margin: float = 0.08) -> tuple[np.ndarray, np.nd
 
 
 def _draw_colliders(ax: Axes, colliders: Sequence[Effect], dim: int, lo: np.ndarray, hi: np.ndarray) -> None:
-    for c in colliders:
-        if hasattr(c, "radius"):
+    """Draw the outline of every effect that has one (:meth:`Effect.outline`); skip the others."""
+    for shape in (c.outline() for c in colliders):
+        if isinstance(shape, Ball):
+            c, r = shape.center, shape.radius
             if dim == 3:
                 u, w = np.meshgrid(np.linspace(0, 2 * np.pi, 24), np.linspace(0, np.pi, 12))
                 ax.plot_wireframe(
-                    c.center[0] + c.radius * np.cos(u) * np.sin(w),
-                    c.center[1] + c.radius * np.sin(u) * np.sin(w),
-                    c.center[2] + c.radius * np.cos(w),
+                    c[0] + r * np.cos(u) * np.sin(w),
+                    c[1] + r * np.sin(u) * np.sin(w),
+                    c[2] + r * np.cos(w),
                     color="0.6",
                     lw=0.5,
                 )
             else:
-                ax.add_patch(plt.Circle(c.center[:2], c.radius, color="0.85", zorder=0))
-        elif hasattr(c, "normal"):
-            n, d = c.normal, c.offset
+                ax.add_patch(plt.Circle(c[:2], r, color="0.85", zorder=0))
+        elif isinstance(shape, Halfspace):
+            n, d = shape.normal, shape.offset
             if dim == 3 and abs(n[2]) > 1e-12:
                 gx, gy = np.meshgrid(np.linspace(lo[0], hi[0], 2), np.linspace(lo[1], hi[1], 2))
                 ax.plot_surface(gx, gy, (d - n[0] * gx - n[1] * gy) / n[2], color="0.8", alpha=0.4)
@@ -76,8 +80,9 @@ def plot_configuration(x: npt.ArrayLike, springs: npt.ArrayLike, ax: Axes | None
         A 3D Axes for dim = 3; one is created when omitted.
     pinned : ndarray of bool, shape (n_particles,), optional
         Pinned particles are drawn as black squares.
-    colliders : sequence of Plane / Sphere effects, optional
-        Drawn as grey shapes.
+    colliders : sequence of effects, optional
+        Those with an outline (:meth:`~mslab.effects.base.Effect.outline`: planes, spheres)
+        are drawn as grey shapes; the others are skipped.
     limits : (lo, hi) arrays, optional
         Axis limits; default from ``x``.
 
@@ -162,7 +167,7 @@ def animate(traj: Trajectory, scene: Scene, path: str | Path, fps: int = 15, max
     path = Path(path)
     springs = scene.springs()
     pairs = springs.springs if springs is not None else np.empty((0, 2), dtype=np.int64)
-    colliders = [e for e in scene.system.effects if e.name in ("plane", "sphere")]
+    colliders = [e for e in scene.system.effects if e.outline() is not None]
     frames = np.unique(np.linspace(0, len(traj.t) - 1, min(max_frames, len(traj.t))).round().astype(int))
     dim = traj.x.shape[2]
     every = traj.x.reshape(-1, dim) if dim == 3 else _as_2d(traj.x.reshape(-1, dim))

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from mslab.fast.job import job_backends
 from mslab.integrators.base import get_method
@@ -106,25 +106,29 @@ def work_precision(scene: Scene, methods: Sequence[str | Integrator],
             else:
                 records.append(_record("scipy", f"scipy:{name}", run["stats"]["dt"], value, run, ref))
         if timing:
-            warm = set()  # serial sweeps: the error runs in this process were the warm-up
-            for task, rec in zip(tasks, records, strict=True):
-                kind, _, name, value, *_ = task
-                if rec["ok"]:
-                    _describe(bar, f"timing {name} {'dt' if kind == 'mslab' else 'rtol'} = {value:.3g}")
-                    warm_up = jobs > 1 and (kind, name) not in warm
-                    warm.add((kind, name))
-                    if kind == "mslab":
-                        rec["wall_time"] = _time_mslab(scene, name, value, t_end, repeats, budget, warm_up,
-                                                       task[-1])
-                    else:
-                        rec["wall_time"] = _time_scipy(scene, name, value, t_end, atol, repeats, budget,
-                                                       warm_up)
-                if bar is not None:
-                    bar.update(1)
+            _time_records(scene, tasks, records, t_end, atol, repeats, budget, jobs > 1, bar)
     finally:
         if owned:
             bar.close()
     return records
+
+
+def _time_records(scene: Scene, tasks: list, records: list[dict], t_end: float, atol: float | None,
+                  repeats: int, budget: float, parallel: bool, bar: Any) -> None:
+    """Measure the ``wall_time`` of every record that ran, serially (its runs are timed in this process)."""
+    warm = set()  # serial sweeps: the error runs in this process were the warm-up
+    for task, rec in zip(tasks, records, strict=True):
+        kind, _, name, value, *_ = task
+        if rec["ok"]:
+            _describe(bar, f"timing {name} {'dt' if kind == 'mslab' else 'rtol'} = {value:.3g}")
+            warm_up = parallel and (kind, name) not in warm
+            warm.add((kind, name))
+            if kind == "mslab":
+                rec["wall_time"] = _time_mslab(scene, name, value, t_end, repeats, budget, warm_up, task[-1])
+            else:
+                rec["wall_time"] = _time_scipy(scene, name, value, t_end, atol, repeats, budget, warm_up)
+        if bar is not None:
+            bar.update(1)
 
 
 def scipy_records(scene: Scene, t_end: float | None = None, methods: Sequence[str] = SCIPY_METHODS,

@@ -1,9 +1,10 @@
 """The imaginary stability limit of a Runge-Kutta tableau in exact rational arithmetic.
 
-With ``R = N/D`` (``N(z) = det(I - zA + z 1 b^T)``, ``D(z) = det(I - zA)``),
-``|R(iy)| <= 1`` is ``E(u) = |N(iy)|^2 - |D(iy)|^2 <= 0`` with ``u = y^2``, a polynomial of
-degree ``s``. Its coefficients are computed here from the coefficients as given, as
-``fractions.Fraction``: exact ones exactly, floats at their exact binary value. A
+With ``R = N/D`` (``N(z) = det(I - zA + z 1 b^T)``, ``D(z) = det(I - zA)``, from
+:mod:`mslab.integrators.families.polynomials`), ``|R(iy)| <= 1`` is ``E(u) = |N(iy)|^2 - |D(iy)|^2 <= 0``
+with ``u = y^2``, a polynomial of degree ``s``. Its coefficients are computed from the
+coefficients as given, as ``fractions.Fraction``: exact ones exactly, floats at their exact
+binary value. A
 double-precision ``E`` of degree 20-32 cannot place its first root (SSP104's limit came out
 as 4.925085 instead of 4.921453, with ``|R(iy)| > 1`` there); the exact one can, with
 exact real-root isolation (Sturm sequences in rational arithmetic, refined to ``1e-18``).
@@ -27,76 +28,14 @@ from typing import Any
 
 import numpy as np
 
+from mslab.integrators.families.coefficients import as_fraction
+from mslab.integrators.families.polynomials import (
+    TableauPolynomials,
+    exact_polynomials,
+    stability_polynomials,
+)
+
 _EPS = float(np.finfo(float).eps)
-
-
-def as_fraction(value: Any) -> tuple[Fraction, bool]:
-    """Return a coefficient as a Fraction, and whether that is its exact value (not a float's)."""
-    if isinstance(value, bool):
-        raise ValueError(f"coefficient {value!r} is a bool, not a number")
-    if isinstance(value, int | Fraction):
-        return Fraction(value), True
-    if getattr(value, "is_Rational", False):  # a sympy Rational or Integer
-        return Fraction(int(value.p), int(value.q)), True
-    if isinstance(value, str):
-        try:
-            return Fraction(value.strip()), True
-        except (ValueError, ZeroDivisionError):
-            from mslab.integrators.coefficients import to_float
-
-            return Fraction(to_float(value)), False
-    return Fraction(float(value)), False
-
-
-def _det(rows: list[list[Fraction]]) -> Fraction:
-    """Return the determinant, by Gaussian elimination in exact arithmetic."""
-    a = [row[:] for row in rows]
-    n, det = len(a), Fraction(1)
-    for k in range(n):
-        pivot = next((i for i in range(k, n) if a[i][k] != 0), None)
-        if pivot is None:
-            return Fraction(0)
-        if pivot != k:
-            a[k], a[pivot] = a[pivot], a[k]
-            det = -det
-        det *= a[k][k]
-        for i in range(k + 1, n):
-            f = a[i][k] / a[k][k]
-            if f:
-                for j in range(k, n):
-                    a[i][j] -= f * a[k][j]
-    return det
-
-
-def _interpolate(values: list[Fraction]) -> list[Fraction]:
-    """Coefficients (ascending) of the polynomial through ``(k, values[k])``, ``k = 0..n-1``."""
-    n = len(values)
-    coef = list(values)  # Newton's divided differences on the nodes 0, 1, ..., n-1
-    for j in range(1, n):
-        for i in range(n - 1, j - 1, -1):
-            coef[i] = (coef[i] - coef[i - 1]) / j
-    poly = [Fraction(0)] * n
-    for i in range(n - 1, -1, -1):  # Horner: poly = poly * (z - i) + coef[i]
-        poly = [(poly[k - 1] if k else Fraction(0)) - i * poly[k] for k in range(n)]
-        poly[0] += coef[i]
-    return poly
-
-
-def rk_polynomials_exact(A: Sequence[Sequence[Fraction]], b: Sequence[Fraction]) -> tuple[list, list]:
-    """``N(z)``, ``D(z)`` of a tableau, coefficients ascending, in exact arithmetic."""
-    s = len(b)
-    if all(A[i][j] == 0 for i in range(s) for j in range(i, s)):  # explicit: D = 1, N_k = b^T A^(k-1) 1
-        N, w = [Fraction(1)], [Fraction(1)] * s
-        for _ in range(s):
-            N.append(sum((bi * wi for bi, wi in zip(b, w, strict=True)), Fraction(0)))
-            w = [sum((A[i][j] * w[j] for j in range(s)), Fraction(0)) for i in range(s)]
-        return N, [Fraction(1)]
-    nums, dens = [], []
-    for z in range(s + 1):
-        base = [[Fraction(int(i == j)) - z * A[i][j] for j in range(s)] for i in range(s)]
-        dens.append(_det(base))
-        nums.append(_det([[base[i][j] + z * b[j] for j in range(s)] for i in range(s)]))
-    return _interpolate(nums), _interpolate(dens)
 
 
 def _mul(p: list, q: list) -> list:
@@ -136,14 +75,16 @@ def _size(p: list) -> np.ndarray:
 
 def imag_limit_exact(A: Sequence[Sequence[Any]], b: Sequence[Any]) -> float:
     """Largest ``y`` with ``|R(it)| <= 1`` for all ``|t| <= y`` (0: none, inf: whole axis)."""
-    pairs_A = [[as_fraction(v) for v in row] for row in A]
-    pairs_b = [as_fraction(v) for v in b]
-    exact = all(e for row in pairs_A for _, e in row) and all(e for _, e in pairs_b)
-    N, D = rk_polynomials_exact([[v for v, _ in row] for row in pairs_A], [v for v, _ in pairs_b])
+    return imag_limit_of(exact_polynomials(A, b), A, b)
+
+
+def imag_limit_of(p: TableauPolynomials, A: Sequence[Sequence[Any]], b: Sequence[Any]) -> float:
+    """:func:`imag_limit_exact` from the tableau's polynomials ``p`` (``A``, ``b`` as given)."""
+    N, D = list(p.N), list(p.D)
     E = _minus(_abs2_on_axis(N), _abs2_on_axis(D))
-    if not exact:  # coefficients that vanish for the intended method vanish only to rounding here
-        absolute = [[abs(v) for v, _ in row] for row in pairs_A], [abs(v) for v, _ in pairs_b]
-        N_abs, D_abs = rk_polynomials_exact(*absolute) if len(D) == 1 else (N, D)
+    if not p.exact:  # coefficients that vanish for the intended method vanish only to rounding here
+        absolute = [[abs(as_fraction(v)[0]) for v in row] for row in A], [abs(as_fraction(v)[0]) for v in b]
+        N_abs, D_abs = stability_polynomials(*absolute) if len(D) == 1 else (N, D)
         size = _size(N_abs) + np.pad(_size(D_abs), (0, len(N_abs) - len(D_abs)))
         E = [0 if abs(float(c)) <= 64 * _EPS * size[k] else c for k, c in enumerate(E)]
     nonzero = [k for k, c in enumerate(E) if c != 0]

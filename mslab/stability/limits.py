@@ -25,7 +25,8 @@ from functools import lru_cache
 import numpy as np
 
 from mslab.integrators.base import Integrator, get_method
-from mslab.stability.exact import imag_limit_exact
+from mslab.integrators.families.polynomials import exact_polynomials
+from mslab.stability.exact import imag_limit_of
 from mslab.stability.functions import amplification, amplification_matrix, spectral_radius, tableau
 
 #: ``rho <= 1 + TOL`` counts as stable in the scans (round-off of near-defective eigenvalues).
@@ -61,19 +62,15 @@ def _ray_limit(rho: Callable[[np.ndarray], np.ndarray], chunk: int = 100) -> flo
     return float(lo)
 
 
-def _poly_from_circle(values: np.ndarray) -> np.ndarray:
-    """Real coefficients (ascending) of a polynomial from its values at the K-th roots of unity."""
-    return np.real(np.fft.fft(values) / values.size)
-
-
 def rk_polynomials(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Coefficients (ascending, degree <= s) of ``N(z) = det(I - zA + z 1 b^T)``, ``D(z) = det(I - zA)``."""
-    s = b.size
-    K = 2 * s + 2
-    z = np.exp(2j * np.pi * np.arange(K) / K)
-    mats = np.eye(s)[None] - z[:, None, None] * A[None]
-    num = np.linalg.det(mats + z[:, None, None] * np.outer(np.ones(s), b)[None])
-    return _poly_from_circle(num)[: s + 1], _poly_from_circle(np.linalg.det(mats))[: s + 1]
+    """Coefficients (ascending, length s + 1) of ``N(z) = det(I - zA + z 1 b^T)``, ``D(z) = det(I - zA)``.
+
+    Of the float arrays as given, exactly (:func:`mslab.integrators.families.polynomials.exact_polynomials`),
+    each coefficient rounded once.
+    """
+    p = exact_polynomials(np.asarray(A, dtype=float).tolist(), np.asarray(b, dtype=float).tolist())
+    s = len(b)
+    return np.pad(p.N_float, (0, s + 1 - len(p.N))), np.pad(p.D_float, (0, s + 1 - len(p.D)))
 
 
 @lru_cache(maxsize=256)
@@ -84,7 +81,7 @@ def _real_interval(m: Integrator) -> float:
 @lru_cache(maxsize=256)
 def _imag_limit(m: Integrator) -> float:
     if tableau(m) is not None:  # exactly, from the coefficients as given
-        return imag_limit_exact(m.coefficients["A"], m.coefficients["b"])
+        return imag_limit_of(m.polynomials, m.coefficients["A"], m.coefficients["b"])
     return _ray_limit(lambda s: np.maximum(np.abs(amplification(m, 1j * s)),
                                            np.abs(amplification(m, -1j * s))))
 

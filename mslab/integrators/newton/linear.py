@@ -52,14 +52,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mslab.integrators.newton_matrix import (
+from mslab.integrators.newton.newton_matrix import (
     FreePattern,
     cholmod_module,
     cholmod_solve,
     is_symmetric,
     one_shot_pattern,
 )
-from mslab.integrators.pcg import pcg
+from mslab.integrators.newton.pcg import pcg
 
 if TYPE_CHECKING:  # scipy is imported on first use: `import mslab` stays cheap
     import scipy.sparse as sp

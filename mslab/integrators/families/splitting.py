@@ -35,11 +35,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from mslab.integrators.base import Integrator, get_method
-from mslab.integrators.coefficients import as_given, frozen
+from mslab.integrators.families.coefficients import as_given, frozen
 from mslab.state import State
 
 if TYPE_CHECKING:
-    from mslab.integrators.runge_kutta import ExplicitRK
+    from mslab.integrators.families.runge_kutta import ExplicitRK
     from mslab.system import System
 
 #: The explicit Runge-Kutta method that integrates a kick with velocity-dependent forces,
@@ -115,15 +115,7 @@ class Splitting(Integrator):
         if not system.velocity_dependent:
             return v + bh * a, p
         rk = self.kick_method
-        accs, powers = [a], [p]
-        for i in range(1, rk.n_stages):
-            vi = v
-            for j in range(i):
-                if rk.A[i, j] != 0.0:
-                    vi = vi + (bh * rk.A[i, j]) * accs[j]
-            a, p = system.rhs(x, vi)
-            accs.append(a)
-            powers.append(p)
+        _, accs, powers = rk.stages(system, x, v, bh, first=(a, p), hold_x=True)
         new, power = v, 0.0
         for bi, a, p in zip(rk.b, accs, powers, strict=True):
             if bi != 0.0:
@@ -164,11 +156,7 @@ class Splitting(Integrator):
                                     np.asarray(h_gamma, dtype=float))
         eye = np.broadcast_to(np.eye(2), w2.shape + (2, 2))
         rk = self.kick_method
-        # S(z) = sum_k (b_k^T A_k^k 1) z^k, a polynomial for the explicit tableau
-        coef, w = [], np.ones(rk.n_stages)
-        for _ in range(rk.n_stages):
-            coef.append(float(rk.b @ w))
-            w = rk.A @ w
+        coef = rk.polynomials.N_float[1:]  # S(z) = (R(z) - 1) / z for the explicit tableau: R = N
         M = eye.copy()
 
         def drift(a: float):

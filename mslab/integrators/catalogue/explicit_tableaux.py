@@ -3,7 +3,7 @@
 from fractions import Fraction as Fr
 
 from mslab.integrators.base import register
-from mslab.integrators.runge_kutta import ExplicitRK
+from mslab.integrators.families.runge_kutta import ExplicitRK
 
 half, sixth, third = Fr(1, 2), Fr(1, 6), Fr(1, 3)
 

@@ -3,7 +3,7 @@
 from fractions import Fraction as Fr
 
 from mslab.integrators.base import register
-from mslab.integrators.splitting import Splitting
+from mslab.integrators.families.splitting import Splitting
 
 half = Fr(1, 2)
 
@@ -40,7 +40,7 @@ velocity_verlet = register(Splitting(
     Order 2; one force evaluation per step (the last kick's acceleration is the next first
     one; one start-up evaluation); symplectic and time-reversible; stable for ``h w < 2``.
     Same positions as Verlet and leapfrog. With velocity-dependent forces each kick is a
-    midpoint-rule step in v (two evaluations; see :mod:`mslab.integrators.splitting`).
+    midpoint-rule step in v (two evaluations; see :mod:`mslab.integrators.families.splitting`).
     """))
 
 _theta = 1.0 / (2.0 - 2.0 ** (1.0 / 3.0))

@@ -181,7 +181,7 @@ def newton_stage(system: System, xh: np.ndarray, vh: np.ndarray, c: float, tol: 
 
     Returns ``(X, V, a, power)`` at the solution; raises StepFailure saying why it failed.
     """
-    from mslab.integrators import linear
+    from mslab.integrators.newton import linear
 
     counters = system.counters
     solver = linear.stage_solver(system, c, policy)

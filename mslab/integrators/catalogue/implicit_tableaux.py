@@ -8,7 +8,7 @@ from fractions import Fraction as Fr
 from math import sqrt
 
 from mslab.integrators.base import register
-from mslab.integrators.runge_kutta import ImplicitRK
+from mslab.integrators.families.runge_kutta import ImplicitRK
 
 implicit_euler = register(ImplicitRK(
     [[1]], [1], name="implicit_euler", order=1, solver="newton",

@@ -1,7 +1,7 @@
 """The fast mass-spring method of Liu, Bargteil, O'Brien and Kavan (2013), beyond the course."""
 
 from mslab.integrators.base import register
-from mslab.integrators.local_global import LocalGlobal
+from mslab.integrators.families.local_global import LocalGlobal
 
 fast_mass_spring = register(LocalGlobal(
     name="fast_mass_spring", iterations=10,
@@ -17,7 +17,7 @@ fast_mass_spring = register(LocalGlobal(
     solve with the kept factors; one factorisation per scene and dt, done by ``start`` before
     the first frame. Chebyshev acceleration (Wang 2015) is the option
     ``LocalGlobal(iterations=10, chebyshev=True)``: the same fixed point, reached in fewer
-    iterations at the same cost each (:mod:`mslab.integrators.local_global`). With many iterations
+    iterations at the same cost each (:mod:`mslab.integrators.families.local_global`). With many iterations
     it converges to implicit Euler's step; 10 iterations stop early (more numerical damping
     than implicit Euler). Linear limit (the course's oscillator): the local step is exact and
     the step is implicit Euler's, ``R(z) = 1/(1 - z)``: A-stable. Other names: projective

@@ -6,22 +6,24 @@ For ``y = (x, v)`` and ``y' = F(y) = (v, a(x, v))`` a method with ``s`` stages s
     y_{n+1} = y_n + h sum_i b_i K_i
 
 Explicit tableaux (``A`` strictly lower triangular) compute the stages one after the
-other; implicit ones solve for them (:mod:`mslab.integrators.solvers`). The dissipated
+other; implicit ones solve for them (:mod:`mslab.integrators.newton.solvers`). The dissipated
 work is integrated with the same weights ``b_i`` from the power at each stage, so the
 energy ledger is as accurate as the method. The stability function
-``R(z) = det(I - zA + z 1 b^T) / det(I - zA)`` and the oscillator map ``R(dt J)`` are
-computed from the very arrays that step.
+``R(z) = det(I - zA + z 1 b^T) / det(I - zA)`` (:mod:`mslab.integrators.families.polynomials`) and
+the oscillator map ``R(dt J)`` are computed from the very coefficients that step.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable
+from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from mslab.integrators.base import Integrator
-from mslab.integrators.coefficients import as_given, frozen
+from mslab.integrators.families.coefficients import as_given, frozen
+from mslab.integrators.families.polynomials import TableauPolynomials, exact_polynomials
 from mslab.state import State
 
 if TYPE_CHECKING:
@@ -47,25 +49,24 @@ class _RungeKutta(Integrator):
         if doc:
             self.__doc__ = doc
 
+    @cached_property
+    def polynomials(self) -> TableauPolynomials:
+        """``N``, ``D`` of ``R = N/D`` from the coefficients as given, exact (computed once per tableau)."""
+        return exact_polynomials(self.coefficients["A"], self.coefficients["b"])
+
     def stability_function(self, z: np.ndarray) -> np.ndarray:
-        """``R(z) = det(I - zA + z 1 b^T) / det(I - zA)``; inf at a pole (explicit: a polynomial)."""
+        """``R(z) = det(I - zA + z 1 b^T) / det(I - zA)``; inf at a pole (explicit: a polynomial).
+
+        Evaluated from :attr:`polynomials` (each coefficient rounded once to a float).
+        """
         z = np.asarray(z, dtype=complex)
-        A, b = self.A, self.b
-        s = b.size
-        if not np.any(np.triu(A)):  # explicit: (I - zA)^-1 = sum_k (zA)^k, a polynomial of degree s
-            coef = [1.0]
-            w = np.ones(s)
-            for _ in range(s):
-                coef.append(float(b @ w))
-                w = A @ w
-            return np.polynomial.polynomial.polyval(z, coef)
-        flat = z.ravel()
-        mats = np.eye(s)[None] - flat[:, None, None] * A[None]
-        num = np.linalg.det(mats + flat[:, None, None] * np.outer(np.ones(s), b)[None])
-        den = np.linalg.det(mats)
+        p = self.polynomials
+        num = np.polynomial.polynomial.polyval(z, p.N_float)
+        if len(p.D) == 1:  # explicit: D = 1
+            return num
+        den = np.polynomial.polynomial.polyval(z, p.D_float)
         with np.errstate(divide="ignore", invalid="ignore"):
-            R = np.where(den == 0, np.inf, num / np.where(den == 0, 1.0, den))
-        return R.reshape(z.shape)
+            return np.where(den == 0, np.inf, num / np.where(den == 0, 1.0, den))
 
     def oscillator_matrix(self, h_omega: np.ndarray, h_gamma: np.ndarray) -> np.ndarray:
         """``R(dt J)`` with ``dt J = [[0, 1], [-h_omega^2, -h_gamma]]`` on the state ``(x, dt v)``."""
@@ -145,22 +146,32 @@ class ExplicitRK(_RungeKutta):
         """The generic compiled Runge-Kutta loop over ``A, b``."""
         return "explicit_rk", (self.A, self.b)
 
-    def step(self, system: System, state: State, dt: float) -> State:
-        """One step: ``s`` counted force evaluations."""
-        x, v = state.x, state.v
+    def stages(self, system: System, x: np.ndarray, v: np.ndarray, h: float, first: tuple | None = None,
+               hold_x: bool = False) -> tuple[list, list, list]:
+        """Run the explicit stage loop: ``Y_i = y_n + h sum_{j<i} A_ij K_j``, ``K_i = F(Y_i)``, in order.
+
+        Return the stage velocities, accelerations and powers. ``first``: ``(a, p)`` of the
+        first stage when already evaluated at ``(x, v)``. ``hold_x``: integrate ``v' = a(x, v)``
+        with ``x`` held fixed (a splitting's kick with velocity-dependent forces).
+        """
         vs: list[np.ndarray] = []
         accs: list[np.ndarray] = []
         powers: list[float] = []
-        for row in self._rows:
+        for i, row in enumerate(self._rows):
             xi, vi = x, v
             for j, aij in row:
-                xi = xi + (dt * aij) * vs[j]
-                vi = vi + (dt * aij) * accs[j]
-            a, p = system.rhs(xi, vi)
+                if not hold_x:
+                    xi = xi + (h * aij) * vs[j]
+                vi = vi + (h * aij) * accs[j]
+            a, p = first if i == 0 and first is not None else system.rhs(xi, vi)
             vs.append(vi)
             accs.append(a)
             powers.append(p)
-        return self._combine(state, vs, accs, powers, dt)
+        return vs, accs, powers
+
+    def step(self, system: System, state: State, dt: float) -> State:
+        """One step: ``s`` counted force evaluations."""
+        return self._combine(state, *self.stages(system, state.x, state.v, dt), dt)
 
 
 class ImplicitRK(_RungeKutta):
@@ -171,14 +182,14 @@ class ImplicitRK(_RungeKutta):
     then ``x_{n+1} = x_n + h sum_i b_i V_i``, ``v_{n+1} = v_n + h sum_i b_i a(X_i, V_i)``.
 
     ``solver="newton"`` (default) solves for the ``V_i`` by Newton's method with the
-    effects' Jacobians (:func:`mslab.integrators.solvers.newton_stages`): stage by stage
+    effects' Jacobians (:func:`mslab.integrators.newton.solvers.newton_stages`): stage by stage
     when ``A`` is lower triangular (DIRK), all stages at once otherwise.
     ``solver="fixed_point"`` iterates ``Y <- y_n + h A F(Y)``, which needs only force
     evaluations but converges only while ``h L |A| < 1``. ``solver="linearised"`` takes one
     Newton step per stage from ``V = v^`` and stops there (Baraff and Witkin's linearised
     implicit Euler): exact on linear forces, an ``O(h^2)`` local deviation otherwise.
     ``linear_solver`` chooses how Newton's linear systems are solved
-    (:mod:`mslab.integrators.linear`): ``"auto"`` keeps and reuses factorisations above
+    (:mod:`mslab.integrators.newton.linear`): ``"auto"`` keeps and reuses factorisations above
     300 unknowns, ``"reuse"`` always, ``"fresh"`` factors every Newton matrix.
 
     Cost per step: Newton — per iteration one force evaluation, one Jacobian and one linear
@@ -210,7 +221,7 @@ class ImplicitRK(_RungeKutta):
         super().__init__(A, b, c, name, order, doc)
         if solver not in ("newton", "fixed_point", "linearised"):
             raise ValueError(f"solver must be 'newton', 'fixed_point' or 'linearised', got {solver!r}")
-        from mslab.integrators.linear import POLICIES
+        from mslab.integrators.newton.linear import POLICIES
 
         if linear_solver not in POLICIES:
             raise ValueError(f"linear_solver must be one of {POLICIES}, got {linear_solver!r}")
@@ -243,7 +254,7 @@ class ImplicitRK(_RungeKutta):
 
     def step(self, system: System, state: State, dt: float) -> State:
         """One step: solve for the stages, then combine them with ``b``."""
-        from mslab.integrators import solvers
+        from mslab.integrators.newton import solvers
 
         if self.solver == "fixed_point":
             vs, accs, powers = solvers.fixed_point_stages(self, system, state, dt)

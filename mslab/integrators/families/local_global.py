@@ -9,7 +9,7 @@ min_{|d| = L} k/2 |x_i - x_j - d|^2``: with the spring directions ``d`` as extra
 ``g`` is quadratic in ``x``. Block coordinate descent alternates
 
 * **local step**: every ``d_q`` is the projection of ``x_i - x_j`` on the sphere of radius
-  ``L_q`` (:mod:`mslab.integrators.local_step`, compiled), and
+  ``L_q`` (:mod:`mslab.integrators.families.local_step`, compiled), and
 * **global step**: ``(M + h gamma + h^2 L) x = M y + h gamma x_n + h^2 (J d + f_other)``,
   one solve with a constant matrix (``L`` the stiffness-weighted graph Laplacian, the same
   for every coordinate, so an ``n x n`` matrix with ``dim`` right-hand sides), factored once
@@ -33,7 +33,7 @@ iteration (a contraction only while their stiffness is small against ``M/h^2 + L
 factorisation (CHOLMOD's symbolic analysis and numeric factorisation, counted in
 ``n_factor``; SuperLU without cvxopt) and, for Chebyshev, the spectral radius estimate
 below. Per iteration: one compiled pass (local step and right-hand side,
-:mod:`mslab.integrators.local_step`), the other effects' forces when they depend on the
+:mod:`mslab.integrators.families.local_step`), the other effects' forces when they depend on the
 state (gravity is a constant, evaluated once), one solve with the kept factors.
 
 **Chebyshev acceleration** (``chebyshev=True``; Wang 2015, eq. 11-12): the plain iterate
@@ -73,8 +73,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from mslab.integrators.base import Integrator
-from mslab.integrators.linear import Factor
-from mslab.integrators.local_step import local_rhs, update
+from mslab.integrators.families.local_step import local_rhs, update
+from mslab.integrators.newton.linear import Factor
 from mslab.state import State
 
 if TYPE_CHECKING:

@@ -3,7 +3,8 @@
 A method is its coefficients. The stepping code and the stability analysis read float
 arrays; :mod:`mslab.derive` reads the coefficients *as given* (``Fraction``, sympy
 numbers and expressions, strings such as ``"19372/6561"``, ints or floats), so exact
-ones stay exact there. Both are made once here, when a method is created, and frozen.
+ones stay exact there (and in :mod:`mslab.integrators.families.polynomials`, as ``Fraction``).
+Both are made once here, when a method is created, and frozen.
 """
 
 from __future__ import annotations
@@ -29,6 +30,22 @@ def to_float(value: Any) -> float:
     if isinstance(value, Number | np.number):
         return float(value)
     return float(value)  # sympy expressions define __float__
+
+
+def as_fraction(value: Any) -> tuple[Fraction, bool]:
+    """Return a coefficient as a Fraction, and whether that is its exact value (not a float's)."""
+    if isinstance(value, bool):
+        raise ValueError(f"coefficient {value!r} is a bool, not a number")
+    if isinstance(value, int | Fraction):
+        return Fraction(value), True
+    if getattr(value, "is_Rational", False):  # a sympy Rational or Integer
+        return Fraction(int(value.p), int(value.q)), True
+    if isinstance(value, str):
+        try:
+            return Fraction(value.strip()), True
+        except (ValueError, ZeroDivisionError):
+            return Fraction(to_float(value)), False
+    return Fraction(float(value)), False
 
 
 def as_given(values: Any) -> tuple:
