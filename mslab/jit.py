@@ -17,9 +17,12 @@ combination of kernels, then compiles here function by function). So all of them
 
 from __future__ import annotations
 
+import inspect
+import os
 import sys
-from collections.abc import Callable
-from contextlib import AbstractContextManager
+import types
+from collections.abc import Callable, Iterator
+from contextlib import AbstractContextManager, contextmanager
 from typing import Any
 
 from mslab.interrupts import protected
@@ -51,7 +54,49 @@ def numba() -> Any:
     return sys.modules["numba"]
 
 
-def compiled(function: Callable, what: str | None = None, **options: Any) -> Any:
+def prange(*args: int) -> range:
+    """``range`` in Python; numba's ``prange`` (a loop split among threads) when compiled here.
+
+    A compiled function that loops with it is compiled with ``parallel=True`` by
+    :func:`compiled`; its iterations must not write to the same places (the caller's
+    contract: e.g. conflict-free batches of springs).
+    """
+    return range(*args)
+
+
+def _resolved(function: Callable, options: dict, helpers: bool) -> tuple[Callable, dict]:
+    """Return ``function`` with the globals numba must see compiled, and its options.
+
+    A plain function of the same module that ``function`` calls (a helper of a kernel, e.g.
+    ``spring_range`` of ``spring_kernel``) becomes its :func:`compiled` twin, and
+    :func:`prange` becomes numba's (``parallel=True`` is then added to the options), in a
+    copy of the function whose globals differ only there: the module itself is unchanged.
+    ``helpers=False`` leaves the helpers alone (a generated module whose functions are all
+    replaced by their compiled twins: :func:`mslab.fast.compose.compile_module`).
+    """
+    names = function.__code__.co_names
+    table = function.__globals__
+    swaps: dict[str, Any] = {}
+    for name in names:
+        value = table.get(name)
+        if value is prange:
+            swaps[name] = numba().prange
+            options = {**options, "parallel": True}
+        elif (helpers and inspect.isfunction(value) and value is not function
+              and value.__module__ == function.__module__):
+            helper_options = {k: v for k, v in options.items() if k != "parallel"}
+            what = f"{value.__name__}, a helper of {function.__name__}"
+            swaps[name] = compiled(value, what, **helper_options)
+    if not swaps:
+        return function, options
+    copy = types.FunctionType(function.__code__, {**table, **swaps}, function.__name__,
+                              function.__defaults__, function.__closure__)
+    copy.__qualname__, copy.__module__ = function.__qualname__, function.__module__
+    copy.__doc__ = function.__doc__
+    return copy, options
+
+
+def compiled(function: Callable, what: str | None = None, *, helpers: bool = True, **options: Any) -> Any:
     """Return ``function`` compiled by numba (``njit(cache=True, **options)``), once per process.
 
     Parameters
@@ -60,6 +105,9 @@ def compiled(function: Callable, what: str | None = None, **options: Any) -> Any
         A plain module-level function in numba's subset of Python.
     what : str, optional
         What it is, for the announcement ("the springs' Jacobian loop"); default its name.
+    helpers : bool
+        Compile the plain functions of its module that it calls along with it (default);
+        a loop over :func:`prange` always becomes numba's parallel loop (:func:`_resolved`).
     **options
         Further ``njit`` options (``error_model="numpy"``).
 
@@ -69,10 +117,15 @@ def compiled(function: Callable, what: str | None = None, **options: Any) -> Any
         Called like ``function``; its first call with new argument types loads the compiled
         code from numba's cache or compiles it, protected from Ctrl-C.
     """
-    key = (function, tuple(sorted(options.items())))
+    key = (function, helpers, tuple(sorted(options.items())))
     fast = _COMPILED.get(key)
     if fast is None:
-        fast = numba().njit(cache=True, **options)(function)
+        target, flags = _resolved(function, options, helpers)
+        if flags.get("parallel"):
+            # start numba's thread pool now: a caller loaded from the cache runs this code
+            # without compiling it, and the pool would not be there (a crash, not an error)
+            numba().get_num_threads()
+        fast = numba().njit(cache=True, **flags)(target)
         fast.mslab_what = what or function.__name__
         original = fast.compile
 
@@ -83,6 +136,41 @@ def compiled(function: Callable, what: str | None = None, **options: Any) -> Any
         fast.compile = compile
         _COMPILED[key] = fast
     return fast
+
+
+def thread_count(requested: int | None = None) -> int | None:
+    """Return the threads compiled loops use: ``requested``, else ``$MSLAB_THREADS``, else None.
+
+    None leaves numba's default: every core numba sees (``NUMBA_NUM_THREADS``). A number is
+    clipped to 1..that many. Results never depend on it (the loops' batches are fixed by the
+    scene: :mod:`mslab.effects.spring_batches`); only the speed does. ValueError for a count
+    that is not a whole number >= 1.
+    """
+    if requested is None:
+        text = os.environ.get("MSLAB_THREADS", "").strip()
+        if not text:
+            return None
+        if not text.isdigit() or int(text) < 1:
+            raise ValueError(f"MSLAB_THREADS: expected a whole number >= 1, got {text!r}")
+        requested = int(text)
+    if isinstance(requested, bool) or not isinstance(requested, int) or requested < 1:
+        raise ValueError(f"threads: expected a whole number >= 1, got {requested!r}")
+    return requested
+
+
+@contextmanager
+def threads(count: int | None) -> Iterator[None]:
+    """Run the enclosed compiled calls on ``count`` threads (None: leave numba's setting)."""
+    if count is None:
+        yield
+        return
+    nb = numba()
+    previous = nb.get_num_threads()
+    nb.set_num_threads(min(count, nb.config.NUMBA_NUM_THREADS))
+    try:
+        yield
+    finally:
+        nb.set_num_threads(previous)
 
 
 def cache_path(fast: Any) -> str:

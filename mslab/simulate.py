@@ -32,7 +32,8 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
              t_end: float | None = None, save_every: int | None = None, *,
              progress: bool | None = None, blowup: float = 1e6,
              stable_dt: float | None = None, backend: str | None = None,
-             check_stability: bool = True, energy_blowup: float = 1e4) -> Trajectory:
+             check_stability: bool = True, energy_blowup: float = 1e4,
+             threads: int | None = None) -> Trajectory:
     """Integrate a scene with a fixed step: ``Simulation(...)`` advanced to ``t_end``.
 
     Parameters
@@ -67,6 +68,9 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
         (:func:`mslab.stability.predicted_stable_dt`; not counted in ``stats``) and warn with
         :class:`~mslab.errors.StabilityWarning` when dt exceeds it; the run goes on, and a
         blow-up then quotes the prediction. Skipped above 5000 degrees of freedom.
+    threads : int, optional
+        Threads of the compiled loops (:func:`mslab.jit.thread_count`); None reads
+        ``$MSLAB_THREADS``, else every core. The result is bitwise the same for any count.
 
     Returns
     -------
@@ -84,7 +88,7 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
     s = scene.settings
     sim = Simulation(scene, method, dt, t_end=s.t_end if t_end is None else t_end, save_every=save_every,
                      blowup=blowup, stable_dt=stable_dt, backend=backend, check_stability=check_stability,
-                     energy_blowup=energy_blowup, _stacklevel=3)
+                     energy_blowup=energy_blowup, threads=threads, _stacklevel=3)
     sim.advance(progress=progress)
     return sim.trajectory
 

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mslab import fast, stopping
+from mslab import fast, jit, stopping
 from mslab.errors import ConvergenceError, InstabilityError, StepFailure
 from mslab.integrators.base import Integrator, get_method
 from mslab.ledger import NEVER, Samples, initial_energy_scale
@@ -71,7 +71,7 @@ class Simulation:
         Save every n-th step (and the declared end). Default: ``scene.settings.save_every``
         with a ``t_end``; an open-ended session saves only its first state (hours of frames
         fill no memory). ``trajectory`` adds the current state when it is not a saved step.
-    blowup, energy_blowup, stable_dt, check_stability, backend
+    blowup, energy_blowup, stable_dt, check_stability, backend, threads
         As in :func:`mslab.simulate`.
 
     Attributes
@@ -85,9 +85,10 @@ class Simulation:
     def __init__(self, scene: Scene, method: str | Integrator | None = None, dt: float | None = None, *,
                  t_end: float | None = None, save_every: int | None = None, blowup: float = 1e6,
                  stable_dt: float | None = None, backend: str | None = None, check_stability: bool = True,
-                 energy_blowup: float = 1e4, _stacklevel: int = 2):
+                 energy_blowup: float = 1e4, threads: int | None = None, _stacklevel: int = 2):
         s = scene.settings
         self.backend = fast.check_backend(backend)
+        self.threads = jit.thread_count(threads)
         self.scene, self.system = scene, scene.system
         self.integrator = get_method(method if method is not None else s.method)
         self.dt = check_dt(s.dt if dt is None else dt)
@@ -160,9 +161,11 @@ class Simulation:
         if self.integrator.implicit:  # Newton's small solves: threads only cost time (mslab.threads)
             from mslab.threads import single_threaded_blas
 
-            single_threaded_blas(self._advance)(count, progress)
+            with jit.threads(self.threads):
+                single_threaded_blas(self._advance)(count, progress)
         else:
-            self._advance(count, progress)
+            with jit.threads(self.threads):
+                self._advance(count, progress)
 
     def _count(self, n: int | None, t: float | None) -> int:
         if n is not None and t is not None:

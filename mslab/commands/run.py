@@ -304,10 +304,13 @@ def _simulate(args: argparse.Namespace, scene: Scene, method: str, cost: RunCost
 
 def run(args: argparse.Namespace) -> int:
     """Run ``mslab run`` with the parsed ``args``; return the exit code."""
+    # -- cheap checks first: options, environment, tools, the scene file, the run's size ------------
+    from mslab import fast, jit
     from mslab.budget import memory_problem, run_cost, size_text
     from mslab.scenes.loader import load_scene
 
-    # -- cheap checks first: options, tools, the scene file, the run's size --------------------------
+    fast.check_backend(None)  # $MSLAB_BACKEND and $MSLAB_THREADS: ValueError, one line
+    jit.thread_count(None)
     problem = animation_problem(args.animate)
     if problem:
         raise CommandError(problem, key="--animate")

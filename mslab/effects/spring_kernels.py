@@ -12,89 +12,88 @@ from __future__ import annotations
 
 import numpy as np
 
+from mslab.jit import prange
+
 
 def spring_kernel(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: np.ndarray,
                   stiffness: np.ndarray, rest_length: np.ndarray, damping: np.ndarray,
-                  damped: int) -> float:
+                  damped: int, ranges: np.ndarray, phases: np.ndarray) -> float:
     """Add the spring forces to ``f`` (n_particles, dim) in place; return the dissipated power.
 
-    A loop over springs: the pair force ``f_q`` goes to ``+f[i]`` and ``-f[j]``;
-    ``damped`` (0 or 1) skips the velocity terms when no spring is damped. A spring of
-    zero length has ``u = 0`` and exerts ``-k d = 0`` (never NaN).
+    The springs come in conflict-free batches (:mod:`mslab.effects.spring_batches`): batch
+    ``r`` is springs ``ranges[r]:ranges[r+1]``, phase ``p`` is batches
+    ``phases[p]:phases[p+1]``, and no two batches of one phase touch the same particle. The
+    batches of a phase run on all threads (numba's ``prange``); each is summed by
+    :func:`spring_range` in its own order, and the powers of the batches are added in
+    batch order, so the result is bitwise the same for any number of threads. A phase of one
+    batch runs on the calling thread (no parallel launch: small scenes pay nothing).
 
-    For dim = 3, the common case, the loop is written out with scalars so the compiler
-    keeps them in registers, in the scale form ``f_q = s d`` with
-    ``s = k (L / l - 1) - c (u . Δv) / l`` (the class's formula, ``u = d / l``): fewer
-    operations on the path from the loads of ``x`` to the stores into ``f`` than
-    ``-k (d - L u)``, which bounds the loop (measured, ``benchmarks/spring_variants.py``).
+    Cost: one square root and one division per spring; work ``O(n_springs)``, span
+    ``O(n_springs / n_threads)`` plus the springs of the serial phases.
+    """
+    n_batches = ranges.shape[0] - 1
+    powers = np.zeros(n_batches)
+    for p in range(phases.shape[0] - 1):
+        first = phases[p]
+        last = phases[p + 1]
+        if last - first > 1:
+            for r in prange(first, last):
+                powers[r] = spring_range(x, v, f, i, j, stiffness, rest_length, damping, damped,
+                                         ranges[r], ranges[r + 1])
+        else:
+            for r in range(first, last):
+                powers[r] = spring_range(x, v, f, i, j, stiffness, rest_length, damping, damped,
+                                         ranges[r], ranges[r + 1])
+    power = 0.0
+    for r in range(n_batches):
+        power += powers[r]
+    return power
+
+
+def spring_range(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: np.ndarray,
+                 stiffness: np.ndarray, rest_length: np.ndarray, damping: np.ndarray, damped: int,
+                 start: int, stop: int) -> float:
+    """Add the forces of springs ``start:stop`` to ``f``; return their dissipated power.
+
+    The one compiled statement of a spring's force (the class's formula, ``u = d / l``)::
+
+        f_i = s d,   s = k (L / l - 1) - c (u . Δv) / l,   f_j = -f_i
+
+    in this scale form (fewer operations between the loads of ``x`` and the stores into
+    ``f`` than ``-k (d - L u)``, which bounds the loop: ``benchmarks/spring_variants.py``).
+    The coordinates are scalars for 1, 2 or 3 dimensions (kept in registers; the tests of
+    ``dim`` and ``damped`` are the same for every spring and cost nothing measurable). A
+    spring of zero length has ``1/l`` taken as 0 and exerts ``-k d = 0`` (never NaN).
     """
     dim = x.shape[1]
     power = 0.0
-    if dim == 3 and not damped:
-        for q in range(i.shape[0]):
-            a = i[q]
-            b = j[q]
-            dx = x[a, 0] - x[b, 0]
-            dy = x[a, 1] - x[b, 1]
-            dz = x[a, 2] - x[b, 2]
-            length = np.sqrt(dx * dx + dy * dy + dz * dz)
-            s = stiffness[q] * (rest_length[q] / length - 1.0) if length > 0.0 else -stiffness[q]
-            fx = s * dx
-            fy = s * dy
-            fz = s * dz
-            f[a, 0] += fx
-            f[a, 1] += fy
-            f[a, 2] += fz
-            f[b, 0] -= fx
-            f[b, 1] -= fy
-            f[b, 2] -= fz
-        return power
-    if dim == 3:
-        for q in range(i.shape[0]):
-            a = i[q]
-            b = j[q]
-            dx = x[a, 0] - x[b, 0]
-            dy = x[a, 1] - x[b, 1]
-            dz = x[a, 2] - x[b, 2]
-            length = np.sqrt(dx * dx + dy * dy + dz * dz)
-            inv_l = 1.0 / length if length > 0.0 else 0.0
-            rate = inv_l * (dx * (v[a, 0] - v[b, 0]) + dy * (v[a, 1] - v[b, 1]) + dz * (v[a, 2] - v[b, 2]))
-            cr = damping[q] * rate
-            power += cr * rate
-            s = stiffness[q] * (rest_length[q] * inv_l - 1.0) - cr * inv_l
-            fx = s * dx
-            fy = s * dy
-            fz = s * dz
-            f[a, 0] += fx
-            f[a, 1] += fy
-            f[a, 2] += fz
-            f[b, 0] -= fx
-            f[b, 1] -= fy
-            f[b, 2] -= fz
-        return power
-    d = np.empty(dim)
-    for q in range(i.shape[0]):
+    for q in range(start, stop):
         a = i[q]
         b = j[q]
-        length2 = 0.0
-        for c in range(dim):
-            d[c] = x[a, c] - x[b, c]
-            length2 += d[c] * d[c]
-        length = np.sqrt(length2)
+        dx = x[a, 0] - x[b, 0]
+        dy = x[a, 1] - x[b, 1] if dim > 1 else 0.0
+        dz = x[a, 2] - x[b, 2] if dim > 2 else 0.0
+        length = np.sqrt(dx * dx + dy * dy + dz * dz)
         inv_l = 1.0 / length if length > 0.0 else 0.0
-        k = stiffness[q]
-        lu = rest_length[q] * inv_l  # L u = (L / l) d
-        cr = 0.0
+        s = stiffness[q] * (rest_length[q] * inv_l - 1.0)
         if damped:
-            rate = 0.0  # u . (v_i - v_j), the stretch rate
-            for c in range(dim):
-                rate += d[c] * inv_l * (v[a, c] - v[b, c])
+            rate = dx * (v[a, 0] - v[b, 0])
+            if dim > 1:
+                rate += dy * (v[a, 1] - v[b, 1])
+            if dim > 2:
+                rate += dz * (v[a, 2] - v[b, 2])
+            rate *= inv_l  # u . (v_i - v_j), the stretch rate
             cr = damping[q] * rate
             power += cr * rate
-        for c in range(dim):
-            fc = -k * (d[c] - lu * d[c]) - cr * (d[c] * inv_l)
-            f[a, c] += fc
-            f[b, c] -= fc
+            s -= cr * inv_l
+        f[a, 0] += s * dx
+        f[b, 0] -= s * dx
+        if dim > 1:
+            f[a, 1] += s * dy
+            f[b, 1] -= s * dy
+        if dim > 2:
+            f[a, 2] += s * dz
+            f[b, 2] -= s * dz
     return power
 
 

@@ -15,6 +15,7 @@ import numpy as np
 from mslab.effects.base import Body, BuildContext, Builder, Effect, HookeSprings
 from mslab.effects.registry import register
 from mslab.effects.schema import Key, check_keys
+from mslab.effects.spring_batches import batches
 from mslab.effects.spring_kernels import scatter_pair_blocks, spring_jacobian_kernel, spring_kernel
 from mslab.effects.spring_table import SPRING_KINDS, SpringTable
 
@@ -114,6 +115,7 @@ class Springs(Effect):
         self.damping = np.ascontiguousarray(damping, dtype=float)
         self.kind = np.array(["structural"] * len(self.i) if kind is None else kind, dtype=str)
         self.n = int(n_particles)
+        self._batched: tuple | None = None  # kernel_params, on first use
         damped = bool(np.any(self.damping != 0.0))
         self.velocity_dependent = damped
         self.dissipative = damped
@@ -239,8 +241,16 @@ class Springs(Effect):
         return HookeSprings(self.i, self.j, self.stiffness, self.rest_length, self.kind)
 
     def kernel_params(self) -> tuple:
-        """Return ``(i, j, stiffness, rest_length, damping, damped)`` for :func:`spring_kernel`."""
-        return (self.i, self.j, self.stiffness, self.rest_length, self.damping, int(self.dissipative))
+        """Return :func:`spring_kernel`'s ``(i, j, stiffness, rest_length, damping, damped, ranges, phases)``.
+
+        The spring arrays in the order of their conflict-free batches
+        (:func:`mslab.effects.spring_batches.batches`), computed once per effect.
+        """
+        if self._batched is None:
+            order, ranges, phases = batches(self.i, self.j, self.n)
+            self._batched = (self.i[order], self.j[order], self.stiffness[order], self.rest_length[order],
+                             self.damping[order], int(self.dissipative), ranges, phases)
+        return self._batched
 
     # -- scene description -----------------------------------------------------------------------
     @staticmethod

@@ -19,7 +19,8 @@ with the kernels inlined, on first use, and caches them on disk: the one way msl
 Decision (measured, see ``benchmarks/RESULTS.md``): numba does not cache functions that take
 other compiled functions as arguments (every process recompiled the loops: a cache miss
 each time), so the composition is a generated source file. Its name is a hash of its whole
-text, which includes the sources of the kernels it calls: editing a kernel or the template
+text, which includes a hash of each kernel's module (the kernel and the helpers it calls,
+:func:`mslab.jit.compiled`): editing a kernel, a helper or the template
 gives a new module and a fresh compile (numba alone would not notice an edited callee).
 Files go to ``$MSLAB_CACHE_DIR`` or ``$XDG_CACHE_HOME/mslab`` (``~/.cache/mslab``), and
 numba's cache to a ``__pycache__`` beside them (or ``$NUMBA_CACHE_DIR``).
@@ -71,7 +72,7 @@ def source(kernels: Sequence[Callable]) -> str:
     """Return the generated module's text for these kernels, in summation order."""
     lines = [_template().rstrip() + "\n", "", f"{_MARKER}"]
     for n, kern in enumerate(kernels):
-        body = inspect.getsource(kern)
+        body = inspect.getsource(sys.modules[kern.__module__])  # the kernel and its helpers
         digest = hashlib.sha256(body.encode()).hexdigest()[:16]
         lines.append(f"from {kern.__module__} import {kern.__name__} as _py_k{n}  # source {digest}")
     lines += ["", "", "def scene_forces(x, v, f, params):",
@@ -104,7 +105,7 @@ def compile_module(module: ModuleType, kernels: Sequence[Callable]) -> None:
         if inspect.isfunction(value) and value.__module__ == module.__name__:
             what = f"{WHAT.get(name, 'a helper of the stepping loops')} over the {names} kernels"
             options = {} if name == "scene_forces" else {"error_model": "numpy"}
-            setattr(module, name, compiled(value, what, **options))
+            setattr(module, name, compiled(value, what, helpers=False, **options))
 
 
 def _key(kernels: Sequence[Callable]) -> tuple:
