@@ -125,31 +125,40 @@ def compare(wp, n: int, repeats: int, frames: int) -> dict:
 
     scene = frame_cloth(n)
     sim = mslab.Simulation(scene, "symplectic_euler", dt=DT)
+    sim1 = mslab.Simulation(scene, "symplectic_euler", dt=DT, threads=1)  # the same, on one thread
 
     def mslab_frames(count: int) -> None:
         for _ in range(count):
             sim.advance(SUBSTEPS)
 
+    def mslab_frames_1(count: int) -> None:
+        for _ in range(count):
+            sim1.advance(SUBSTEPS)
+
     w64, state64 = warp_frames(wp, scene, "float64")
     w32, _ = warp_frames(wp, scene, "float32")
-    for fn in (w64, w32, mslab_frames):
+    for fn in (w64, w32, mslab_frames, mslab_frames_1):
         fn(2)  # warm-up: Warp compiles, mslab decides its backend and loads the compiled loop
     long_run = mslab.Simulation(scene, "symplectic_euler", dt=DT)
     long_run.advance(SUBSTEPS)
-    rows = {"warp64": [], "mslab": [], "warp32": [], "mslab_one_call": []}
+    rows = {"warp64": [], "mslab": [], "warp32": [], "mslab_one_call": [], "mslab_1_thread": []}
     worst = 0.0
     for _ in range(repeats):
         rows["warp64"].append(_timed(w64, frames) / frames)
         rows["mslab"].append(_timed(mslab_frames, frames) / frames)
         rows["warp32"].append(_timed(w32, frames) / frames)
         rows["mslab_one_call"].append(_timed(long_run.advance, SUBSTEPS * frames) / frames)
+        rows["mslab_1_thread"].append(_timed(mslab_frames_1, frames) / frames)
         wx, wv = state64()
         state = sim.state
         size = max(1.0, float(np.abs(state.x).max()))
         worst = max(worst, float(np.abs(wx - state.x).max()) / size)
         if worst > 1e-9:
             raise RuntimeError(f"mslab and Warp float64 disagree by {worst:.3g} at {n}x{n}")
+        if not np.array_equal(sim1.state.x, sim.state.x):
+            raise RuntimeError("mslab on one thread and on all differ")
     ratios = [m / w for m, w in zip(rows["mslab"], rows["warp64"], strict=True)]
+    ratios_1 = [m / w for m, w in zip(rows["mslab_1_thread"], rows["warp64"], strict=True)]
     med = {key: statistics.median(vals) for key, vals in rows.items()}
     return {"n": n, "n_particles": scene.system.n_particles,
             "n_springs": int(sum(e.kernel_items(0) for e in scene.system.effects if e.internal)),
@@ -157,6 +166,9 @@ def compare(wp, n: int, repeats: int, frames: int) -> dict:
             "max_rel_difference_x": worst,
             "frame_s": med, "ratio_mslab_warp64_median": statistics.median(ratios),
             "ratio_min": min(ratios), "ratio_max": max(ratios),
+            "threads": sim.threads or mslab.jit.numba().config.NUMBA_NUM_THREADS,
+            "ratio_1_thread_warp64_median": statistics.median(ratios_1),
+            "ratio_1_thread_min": min(ratios_1), "ratio_1_thread_max": max(ratios_1),
             "ratio_mslab_warp32": med["mslab"] / med["warp32"],
             "ratio_frame_vs_one_call": med["mslab"] / med["mslab_one_call"]}
 
@@ -184,15 +196,18 @@ def chunked_vs_one_call(repeats: int, n: int = 300) -> dict:
 
 
 def table(doc: dict) -> str:
-    lines = ["| cloth | springs | mslab per frame | one long call | Warp f64 | Warp f32 | mslab / Warp f64 "
-             "(median, min–max) | mslab / Warp f32 |", "|---|---|---|---|---|---|---|---|"]
+    lines = ["| cloth | springs | mslab per frame (threads) | one long call | Warp f64 | Warp f32 "
+             "| mslab / Warp f64 (median, min–max) | mslab / Warp f32 | mslab on 1 thread / Warp f64 |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for key in sorted(k for k in doc if k.startswith("cloth_")):
         r = doc[key]
         f = r["frame_s"]
-        lines.append(f"| {r['n']}² | {r['n_springs']:,} | {1e3 * f['mslab']:.2f} ms | "
+        lines.append(f"| {r['n']}² | {r['n_springs']:,} | {1e3 * f['mslab']:.2f} ms ({r['threads']}) | "
                      f"{1e3 * f['mslab_one_call']:.2f} ms | {1e3 * f['warp64']:.2f} ms | "
                      f"{1e3 * f['warp32']:.2f} ms | {r['ratio_mslab_warp64_median']:.2f} "
-                     f"({r['ratio_min']:.2f}–{r['ratio_max']:.2f}) | {r['ratio_mslab_warp32']:.2f} |")
+                     f"({r['ratio_min']:.2f}–{r['ratio_max']:.2f}) | {r['ratio_mslab_warp32']:.2f} | "
+                     f"{r['ratio_1_thread_warp64_median']:.2f} ({r['ratio_1_thread_min']:.2f}–"
+                     f"{r['ratio_1_thread_max']:.2f}) |")
     c = doc.get("chunked_300")
     if c:
         lines.append(f"\n300² cloth, 20 calls of 13 steps / one call of 260 steps: {c['ratio_median']:.3f} "

@@ -26,14 +26,16 @@ What is compared, per cloth size:
   time (what the step costs one core; steady on a shared machine) and wall time (what a
   user waits; moved by other jobs); the machine, library versions and the load average
   recorded;
-* **bandwidth**: the spring kernel alone (mslab's ``spring_kernel`` as compiled by
-  ``mslab.fast``, with the parameters it is given there: uint32 indices), in bytes per
-  spring as issue 14 counts them (two int64 indices,
-  stiffness and rest length, read ``x_i, x_j``, write ``f_i, f_j``: 128 bytes), against a
-  STREAM-like copy (``b[i] = a[i]`` over 2 x 128 MiB, 16 bytes per element) measured in
-  the same run, interleaved (copy, then kernel, per repeat, in CPU time; the share per
-  repeat, its median with min and max). Everything single-threaded: Warp's CPU backend
-  runs a launch on one thread, and so does mslab's loop.
+* **threads**: Warp's CPU backend runs a launch on one thread; mslab is timed on one
+  thread and on every core numba sees (its default), the same run bitwise
+  (:mod:`mslab.effects.spring_batches`). Warp gets the springs in the order of mslab's
+  batches, so both sum every particle's forces in the same order;
+* **the kernel's limit**: the spring kernel alone (mslab's ``spring_kernel`` as compiled by
+  ``mslab.fast``, one thread) against the arithmetic it cannot avoid, one square root and one
+  division per spring, timed as a loop of only those over as many numbers (vectorised by the
+  compiler: the machine's throughput for them), interleaved, in CPU time. The issue-14
+  "share of copy bandwidth" is gone: the kernel reads far fewer bytes from memory than it
+  counted, and the kernel is bound by its arithmetic, not by memory.
 """
 
 
@@ -51,9 +53,6 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 
 from benchmarks.suite import machine  # noqa: E402
-
-#: bytes per spring as issue 14 counts them (see the module docstring)
-BYTES_PER_SPRING = 128
 
 
 def load_warp():
@@ -95,9 +94,10 @@ def warp_stepper(wp, x0, v0, springs, gravity, inv_mass, dt: float):
         b = j[q]
         d = x[a] - x[b]
         length = wp.length(d)
-        s = -k[q]
+        inv_l = f64(0.0)
         if length > f64(0.0):
-            s = k[q] * (rest[q] / length - f64(1.0))
+            inv_l = f64(1.0) / length
+        s = k[q] * (rest[q] * inv_l - f64(1.0))
         fq = s * d
         wp.atomic_add(f, a, fq)
         wp.atomic_sub(f, b, fq)
@@ -117,10 +117,11 @@ def warp_stepper(wp, x0, v0, springs, gravity, inv_mass, dt: float):
     v = wp.array(v0, dtype=wp.vec3d, device=dev)
     fg = wp.array(gravity.kernel_params()[0], dtype=wp.vec3d, device=dev)
     f = wp.array(gravity.kernel_params()[0], dtype=wp.vec3d, device=dev)
-    i = wp.array(springs.i.astype(np.int32), dtype=wp.int32, device=dev)
-    j = wp.array(springs.j.astype(np.int32), dtype=wp.int32, device=dev)
-    k = wp.array(springs.stiffness, dtype=f64, device=dev)
-    rest = wp.array(springs.rest_length, dtype=f64, device=dev)
+    bi, bj, bk, brest = springs.kernel_params()[:4]  # mslab's batch order: the same sums
+    i = wp.array(bi.astype(np.int32), dtype=wp.int32, device=dev)
+    j = wp.array(bj.astype(np.int32), dtype=wp.int32, device=dev)
+    k = wp.array(bk, dtype=f64, device=dev)
+    rest = wp.array(brest, dtype=f64, device=dev)
     im = wp.array(inv_mass, dtype=f64, device=dev)
     m, npart = springs.i.size, x0.shape[0]
 
@@ -133,10 +134,10 @@ def warp_stepper(wp, x0, v0, springs, gravity, inv_mass, dt: float):
     return step, (lambda: (x.numpy(), v.numpy()))
 
 
-def mslab_stepper(scene, x0, v0, dt: float):
+def mslab_stepper(scene, x0, v0, dt: float, threads: int | None = None):
     """``step(n)`` advancing mslab's compiled symplectic Euler loop by ``n`` steps, and its state."""
     import mslab
-    from mslab import fast
+    from mslab import fast, jit
     from mslab.state import State
 
     runner = fast.stepper(scene.system, mslab.get_method("symplectic_euler"), "numba")
@@ -145,8 +146,9 @@ def mslab_stepper(scene, x0, v0, dt: float):
     buf = np.empty((0,) + x0.shape)
 
     def step(count: int) -> None:
-        done, _, new, ok = runner.advance(state["s"], dt, state["step"], state["step"] + count, saved, 0,
-                                          buf, buf, np.empty(0), 1e12)
+        with jit.threads(threads):
+            done, _, new, ok = runner.advance(state["s"], dt, state["step"], state["step"] + count, saved, 0,
+                                              buf, buf, np.empty(0), 1e12)
         if not ok:
             raise FloatingPointError("mslab's cloth blew up")
         state["s"], state["step"] = new, done
@@ -154,50 +156,52 @@ def mslab_stepper(scene, x0, v0, dt: float):
     return step, (lambda: (state["s"].x, state["s"].v)), runner
 
 
-def _copy_kernel():
+def _floor_kernel():
     from numba import njit
 
-    @njit(cache=False)
-    def copy(a, b):
-        for p in range(a.shape[0]):
-            b[p] = a[p]
+    @njit(cache=False, error_model="numpy")
+    def floor(a, out):
+        for q in range(a.shape[0]):
+            out[q] = 1.0 / np.sqrt(a[q])
 
-    return copy
+    return floor
 
 
-def bandwidth_share(runner, x, v, repeats: int) -> dict:
-    """The spring kernel's bytes per second as a share of a STREAM-like copy, interleaved.
+def kernel_limit(runner, x, v, repeats: int) -> dict:
+    """The spring kernel alone against one square root and one division per spring, interleaved.
 
-    Each repeat times one copy ``b[i] = a[i]`` over 2 x 128 MiB (16 bytes per element, far
-    beyond the caches) and then mslab's compiled spring kernel alone (forces into a buffer,
-    128 bytes per spring), back to back in CPU time; the share is taken per repeat.
+    Each repeat times the arithmetic floor (``out[q] = 1 / sqrt(a[q])`` over as many numbers
+    as springs: the machine's throughput for the two operations) and then mslab's compiled
+    spring kernel on one thread, back to back in CPU time; the ratio is taken per repeat.
     """
+    from mslab import jit
+
     mod, params, kernels = runner.model.module, runner.model.params, runner.model.kernels
     n = next(q for q, kern in enumerate(kernels) if kern.__name__ == "spring_kernel")
     kern = getattr(mod, f"_k{n}")
     m = params[n][0].size
     f = np.zeros_like(x)
-    copy = _copy_kernel()
-    a = np.random.default_rng(0).random(2**24)
-    b = np.empty_like(a)
-    copy(a, b)
-    kern(x, v, f, *params[n])
-    number = max(1, int(0.05 / max(1e-7, _once(lambda: kern(x, v, f, *params[n])))))
-    t_copy, t_spring = [], []
-    for _ in range(repeats):
-        t = time.process_time()
-        copy(a, b)
-        t_copy.append(time.process_time() - t)
-        t = time.process_time()
-        for _ in range(number):
-            kern(x, v, f, *params[n])
-        t_spring.append((time.process_time() - t) / number)
-    shares = [(BYTES_PER_SPRING * m / ts) / (16 * a.size / tc)
-              for tc, ts in zip(t_copy, t_spring, strict=True)]
-    return {"copy_bytes_per_s": 16 * a.size / statistics.median(t_copy),
+    floor = _floor_kernel()
+    a = np.random.default_rng(0).uniform(0.5, 2.0, m)
+    out = np.empty_like(a)
+    floor(a, out)
+    with jit.threads(1):
+        kern(x, v, f, *params[n])
+        number = max(1, int(0.05 / max(1e-7, _once(lambda: kern(x, v, f, *params[n])))))
+        t_floor, t_spring = [], []
+        for _ in range(repeats):
+            t = time.process_time()
+            for _ in range(number):
+                floor(a, out)
+            t_floor.append((time.process_time() - t) / number)
+            t = time.process_time()
+            for _ in range(number):
+                kern(x, v, f, *params[n])
+            t_spring.append((time.process_time() - t) / number)
+    ratios = [ts / tf for tf, ts in zip(t_floor, t_spring, strict=True)]
+    return {"floor_ns_per_spring": 1e9 * statistics.median(t_floor) / m,
             "spring_kernel_ns_per_spring": 1e9 * statistics.median(t_spring) / m,
-            "spring_kernel_bytes_per_s": BYTES_PER_SPRING * m / statistics.median(t_spring),
-            "share_median": statistics.median(shares), "share_min": min(shares), "share_max": max(shares)}
+            "ratio_median": statistics.median(ratios), "ratio_min": min(ratios), "ratio_max": max(ratios)}
 
 
 def _once(fn) -> float:
@@ -207,45 +211,52 @@ def _once(fn) -> float:
 
 
 def compare(wp, n: int, repeats: int, dt: float = 1e-5) -> dict:
-    """One cloth size: agreement, interleaved step times, the spring kernel's share of bandwidth."""
+    """One cloth size: agreement, interleaved step times (mslab on 1 and all threads), the kernel's limit."""
+    from mslab.jit import numba
+
     scene, x0, v0, springs, gravity = build_cloth(n)
     inv_mass = np.ascontiguousarray(scene.system.inv_mass)
     w_step, w_state = warp_stepper(wp, x0, v0, springs, gravity, inv_mass, dt)
-    m_step, m_state, runner = mslab_stepper(scene, x0, v0, dt)
+    cores = numba().config.NUMBA_NUM_THREADS
+    steppers = {"warp": (w_step, w_state)}
+    for threads in sorted({1, cores}):
+        m_step, m_state, runner = mslab_stepper(scene, x0, v0, dt, threads)
+        steppers[f"mslab_{threads}"] = (m_step, m_state)
     m = springs.i.size
-    # steps per timed block: about 0.2 s of work
-    w_step(2)
-    m_step(2)  # warm-up: compile (Warp) and load or compile (mslab) outside the timings
-    per = max(_once(lambda: w_step(3)), _once(lambda: m_step(3))) / 3  # both 5 steps ahead of x0
+    for fn, _ in steppers.values():
+        fn(2)  # warm-up: compile (Warp) and load or compile (mslab) outside the timings
+    per = max(_once(lambda fn=fn: fn(3)) for fn, _ in steppers.values()) / 3  # all 5 steps ahead of x0
     block = max(5, int(0.2 / per))
-    wall = {"warp": [], "mslab": []}
-    cpu = {"warp": [], "mslab": []}
+    wall = {name: [] for name in steppers}
+    cpu = {name: [] for name in steppers}
     for _ in range(repeats):
-        for name, fn in (("warp", w_step), ("mslab", m_step)):
+        for name, (fn, _) in steppers.items():
             t0, c0 = time.perf_counter(), time.process_time()
             fn(block)
             wall[name].append((time.perf_counter() - t0) / block)
             cpu[name].append((time.process_time() - c0) / block)
     xw, vw = w_state()
-    xm, vm = m_state()
-    scale = max(1.0, float(np.max(np.abs(xm))))
-    dx = float(np.max(np.abs(xw - xm))) / scale
-    dv = float(np.max(np.abs(vw - vm))) / max(1.0, float(np.max(np.abs(vm))))
-    if not (dx <= 1e-12 and dv <= 1e-12):
-        raise AssertionError(f"mslab and Warp disagree on the {n}x{n} cloth: "
-                             f"|dx| = {dx:.3g}, |dv| = {dv:.3g}")
-    share = bandwidth_share(runner, xm, vm, repeats)
-    out = {"n": n, "n_particles": int(x0.shape[0]), "n_springs": int(m), "dt": dt,
-           "steps_per_block": block, "repeats": repeats, "steps_compared": 5 + repeats * block,
-           "max_rel_difference_x": dx, "max_rel_difference_v": dv, "bandwidth": share}
-    for clock, times in (("wall", wall), ("cpu", cpu)):
-        ratios = [b / a for a, b in zip(times["warp"], times["mslab"], strict=True)]
-        out[clock] = {"warp_step_s": statistics.median(times["warp"]),
-                      "mslab_step_s": statistics.median(times["mslab"]),
-                      "ratio_median": statistics.median(ratios), "ratio_min": min(ratios),
-                      "ratio_max": max(ratios),
-                      "warp_ns_per_spring": 1e9 * statistics.median(times["warp"]) / m,
-                      "mslab_ns_per_spring": 1e9 * statistics.median(times["mslab"]) / m}
+    out = {"n": n, "n_particles": int(x0.shape[0]), "n_springs": int(m), "dt": dt, "threads": cores,
+           "steps_per_block": block, "repeats": repeats, "steps_compared": 5 + repeats * block}
+    for name, (_, state) in steppers.items():
+        xm, vm = state()
+        if name != "warp" and not (np.array_equal(xm, xw) and np.array_equal(vm, vw)):
+            dx = float(np.max(np.abs(xw - xm)))
+            raise AssertionError(f"mslab ({name}) and Warp differ on the {n}x{n} cloth: |dx| = {dx:.3g}")
+    out["bitwise_equal"] = True
+    out["kernel_limit"] = kernel_limit(runner, xw, vw, repeats)
+    for name in steppers:
+        if name == "warp":
+            continue
+        clocks = (("wall", wall), ("cpu", cpu)) if name == "mslab_1" else (("wall", wall),)
+        for clock, times in clocks:
+            ratios = [b / a for a, b in zip(times["warp"], times[name], strict=True)]
+            out[f"{name}_{clock}"] = {
+                "warp_step_s": statistics.median(times["warp"]),
+                "mslab_step_s": statistics.median(times[name]),
+                "ratio_median": statistics.median(ratios), "ratio_min": min(ratios), "ratio_max": max(ratios),
+                "warp_ns_per_spring": 1e9 * statistics.median(times["warp"]) / m,
+                "mslab_ns_per_spring": 1e9 * statistics.median(times[name]) / m}
     return out
 
 
@@ -268,26 +279,25 @@ def table(doc: dict) -> str:
     """The comparison as Markdown (or the reason it was skipped)."""
     if "skipped" in doc:
         return f"Warp comparison skipped: {doc['skipped']}."
-    rows = ["| cloth | springs | clock | Warp step (ms) | mslab step (ms) | mslab / Warp: median (min-max) "
-            "| ns/spring Warp / mslab |", "|---|---|---|---|---|---|---|"]
+    rows = ["| cloth | springs | mslab threads, clock | Warp step (ms) | mslab step (ms) | mslab / Warp: "
+            "median (min-max) | ns/spring Warp / mslab |", "|---|---|---|---|---|---|---|"]
     keys = sorted((k for k in doc if k.startswith("cloth_")), key=lambda k: doc[k]["n"])
     for key in keys:
         c = doc[key]
-        for clock in ("cpu", "wall"):
-            t = c[clock]
+        for run in sorted(k for k in c if k.startswith("mslab_")):
+            t = c[run]
+            threads, clock = run.split("_")[1:]
             rows.append(
-                f"| {c['n']}x{c['n']} | {c['n_springs']} | {clock} | {1e3 * t['warp_step_s']:.3g} | "
-                f"{1e3 * t['mslab_step_s']:.3g} | {t['ratio_median']:.3f} ({t['ratio_min']:.3f}-"
+                f"| {c['n']}x{c['n']} | {c['n_springs']} | {threads}, {clock} | {1e3 * t['warp_step_s']:.3g} "
+                f"| {1e3 * t['mslab_step_s']:.3g} | {t['ratio_median']:.3f} ({t['ratio_min']:.3f}-"
                 f"{t['ratio_max']:.3f}) | {t['warp_ns_per_spring']:.3g} / {t['mslab_ns_per_spring']:.3g} |")
-    rows += ["", "| cloth | copy bandwidth | spring kernel alone | at 128 B/spring | share of copy "
-             "bandwidth: median (min-max) | max rel. difference mslab - Warp |", "|---|---|---|---|---|---|"]
+    rows += ["", "| cloth | spring kernel, one thread | one square root + one division (vectorised) "
+             "| kernel / that floor: median (min-max) | mslab = Warp bitwise |", "|---|---|---|---|---|"]
     for key in keys:
-        c, bw = doc[key], doc[key]["bandwidth"]
-        rows.append(f"| {c['n']}x{c['n']} | {bw['copy_bytes_per_s'] / 1e9:.1f} GB/s | "
-                    f"{bw['spring_kernel_ns_per_spring']:.3g} ns/spring | "
-                    f"{bw['spring_kernel_bytes_per_s'] / 1e9:.1f} GB/s | {100 * bw['share_median']:.0f} % "
-                    f"({100 * bw['share_min']:.0f}-{100 * bw['share_max']:.0f} %) | "
-                    f"{max(c['max_rel_difference_x'], c['max_rel_difference_v']):.1e} |")
+        c, lim = doc[key], doc[key]["kernel_limit"]
+        rows.append(f"| {c['n']}x{c['n']} | {lim['spring_kernel_ns_per_spring']:.3g} ns/spring | "
+                    f"{lim['floor_ns_per_spring']:.3g} ns/spring | {lim['ratio_median']:.2f} "
+                    f"({lim['ratio_min']:.2f}-{lim['ratio_max']:.2f}) | {c['bitwise_equal']} |")
     return "\n".join(rows)
 
 

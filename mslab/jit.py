@@ -46,6 +46,10 @@ def announce_with(announcer: Callable[[str, str], AbstractContextManager] | None
 def numba() -> Any:
     """Return the numba module, imported (protected from Ctrl-C) on first use."""
     if not _listening:
+        # numba's OpenMP threads sleep between parallel loops instead of spinning (unless the
+        # user chose): spinning threads made the spring loop 20-150x slower on a loaded 2-core
+        # machine, and no faster on an idle one (benchmarks/RESULTS.md, "Threads")
+        os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
         with protected("loading numba"):
             import numba  # noqa: F401
 

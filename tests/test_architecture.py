@@ -357,13 +357,6 @@ def test_bench_from_an_installed_package_says_it_needs_a_checkout(tmp_path):
 
 
 # -- sizes: modules under 400 lines, functions at most 80 --------------------------------------
-#: functions over 80 lines in files being rewritten elsewhere as this test was written (their
-#: owners split them; the entry then goes)
-LONG_FUNCTIONS_BEING_REWRITTEN = {
-    ("effects/spring_kernels.py", "spring_kernel"), ("fast/loops.py", "run_splitting"),
-    ("integrators/newton/solvers.py", "newton_stage"),
-}
-
 
 def test_modules_and_functions_stay_small():
     long_modules, long_functions = [], []
@@ -374,6 +367,6 @@ def test_modules_and_functions_stay_small():
         for node in ast.walk(ast.parse(text)):
             if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
                 length = node.end_lineno - node.lineno + 1
-                if length > 80 and (rel, node.name) not in LONG_FUNCTIONS_BEING_REWRITTEN:
+                if length > 80:
                     long_functions.append(f"mslab/{rel}: {node.name}, {length} lines")
     assert not long_modules and not long_functions, long_modules + long_functions

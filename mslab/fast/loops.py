@@ -162,9 +162,50 @@ def run_explicit_rk(x, v, dissipated, A, b, dt, step, n_steps, saved, k, xs, vs,
     return step, k, dissipated, OK, n_force
 
 
+def _kick_rk(x, xf, vf, vi, f, f0f, w, acc, pws, kA, kb, h, hd, limit, params):
+    """Kick by one step of the explicit tableau ``(kA, kb)`` on ``v' = a(x, v)``, x fixed; then drift.
+
+    Stage ``r``: ``V_r = v + h sum_{u<r} kA[r, u] a_u``, ``a_r = a(x, V_r)`` (into ``acc[r]``);
+    then ``v += h sum_r kb[r] a_r``, ``x += hd v`` and the blow-up test in one pass. Returns
+    the kick's power ``sum_r kb[r] P_r`` and the count of bad entries.
+    """
+    ns = kb.shape[0]
+    size = xf.size
+    vif = vi.reshape(vi.size)
+    ff = f.reshape(size)
+    for r in range(ns):
+        for e in range(size):
+            sv = vf[e]
+            for u in range(r):
+                hu = h * kA[r, u]
+                if hu != 0.0:
+                    sv = sv + hu * acc[u, e]
+            vif[e] = sv
+        pws[r] = scene_forces(x, vi, f, params)
+        for e in range(size):
+            acc[r, e] = w[e] * ff[e]
+            ff[e] = f0f[e]
+    pw = 0.0
+    for r in range(ns):
+        if kb[r] != 0.0:
+            pw += kb[r] * pws[r]
+    bad = 0
+    for e in range(size):
+        vq = vf[e]
+        for r in range(ns):
+            hb = h * kb[r]
+            if hb != 0.0:
+                vq = vq + hb * acc[r, e]
+        vf[e] = vq
+        xq = xf[e] + hd * vq
+        xf[e] = xq
+        bad += 0 if (abs(xq) < limit and vq - vq == 0.0) else 1
+    return pw, bad
+
+
 def run_splitting(x, v, dissipated, drift, kick, reuse, kA, kb, mem_a, mem_p,
                   dt, step, n_steps, saved, k, xs, vs, ds, limit, w, f0, params):
-    """Take steps of a drift/kick splitting (``mslab/integrators/splitting.py``).
+    """Take steps of a drift/kick splitting (``mslab/integrators/families/splitting.py``).
 
     ``x += a_0 h v; v += b_0 h a; x += a_1 h v; ...; x += a_k h v`` with ``a = drift``,
     ``b = kick``. ``reuse``: the first kick takes the acceleration of the previous step's
@@ -187,7 +228,6 @@ def run_splitting(x, v, dissipated, drift, kick, reuse, kA, kb, mem_a, mem_p,
     acc = np.empty((ns if ns > 1 else 0, size))
     pws = np.empty(ns)
     vi = np.empty((n, dim) if ns > 1 else (0, dim))
-    vif = vi.reshape(vi.size)
     n_force = 0
     p_last = mem_p[0]
     while step < n_steps:
@@ -204,34 +244,8 @@ def run_splitting(x, v, dissipated, drift, kick, reuse, kA, kb, mem_a, mem_p,
                 pw = p_last
                 bad = _kick_with(xf, vf, maf, h, hd, limit)
             elif ns > 1:  # velocity-dependent forces: one step of (kA, kb) in v, x fixed
-                for r in range(ns):
-                    for e in range(size):
-                        sv = vf[e]
-                        for u in range(r):
-                            hu = h * kA[r, u]
-                            if hu != 0.0:
-                                sv = sv + hu * acc[u, e]
-                        vif[e] = sv
-                    pws[r] = scene_forces(x, vi, f, params)
-                    n_force += 1
-                    for e in range(size):
-                        acc[r, e] = w[e] * ff[e]
-                        ff[e] = f0f[e]
-                pw = 0.0
-                for r in range(ns):
-                    if kb[r] != 0.0:
-                        pw += kb[r] * pws[r]
-                bad = 0
-                for e in range(size):
-                    vq = vf[e]
-                    for r in range(ns):
-                        hb = h * kb[r]
-                        if hb != 0.0:
-                            vq = vq + hb * acc[r, e]
-                    vf[e] = vq
-                    xq = xf[e] + hd * vq
-                    xf[e] = xq
-                    bad += 0 if (abs(xq) < limit and vq - vq == 0.0) else 1
+                pw, bad = _kick_rk(x, xf, vf, vi, f, f0f, w, acc, pws, kA, kb, h, hd, limit, params)
+                n_force += ns
             elif reuse and last:
                 pw = scene_forces(x, v, f, params)
                 n_force += 1
@@ -255,7 +269,7 @@ def run_splitting(x, v, dissipated, drift, kick, reuse, kA, kb, mem_a, mem_p,
 
 def run_two_step(method, x, v, dissipated, mem_x, mem_a, mem_p, dt, step, n_steps, saved, k,
                  xs, vs, ds, limit, velocity_dependent, w, f0, params):
-    """Take steps of Verlet and leapfrog (``mslab/integrators/two_step.py``, eqs. 21-26 of the lecture notes).
+    """Take steps of Verlet and leapfrog (``integrators/families/two_step.py``, eqs. 21-26 of the notes).
 
     One force evaluation ``a = a(X, V)`` per step:
 

@@ -28,7 +28,7 @@ def _param(value: object) -> object:
     fit (half the memory traffic of a spring's indices): ``uint32`` when none is negative
     (index arrays), else ``int32``, else ``int64``. Unsigned indices spare the compiled
     code numba's test for negative indices on every access, which costs a spring loop
-    10-20 % of its time (measured, ``benchmarks/spring_variants.py``); kernels use such
+    10-20 % of its time (measured, ``benchmarks/RESULTS.md``); kernels use such
     values as indices only. Bools become ints; floats stay floats.
     """
     if isinstance(value, np.ndarray):

@@ -36,6 +36,7 @@ from mslab.errors import StepFailure
 if TYPE_CHECKING:
     import scipy.sparse as sp
 
+    from mslab.integrators.newton.linear import StageSolver
     from mslab.state import State
     from mslab.system import System
 
@@ -224,33 +225,15 @@ def newton_stage(system: System, xh: np.ndarray, vh: np.ndarray, c: float, tol: 
             counters.n_iter += 1
             return residual(V + du)[1]
         if var:
-            grad = -solver.rhs(r.ravel())
-            slope = float(grad @ du.ravel()[solver.free])
-            if not slope < 0.0 and solver.last == "modified":
-                du = solver.direction(point, r.ravel(), exact=True, definite_only=True)
-                du = solver.shifted_direction(r.ravel()) if du is None else du
-                du = du.reshape(V.shape)
-                slope = float(grad @ du.ravel()[solver.free])
-            if not slope < 0.0:  # indefinite Newton matrix: its direction climbs the objective
-                du = solver.shifted_direction(r.ravel()).reshape(V.shape)
-                slope = float(grad @ du.ravel()[solver.free])
-            alpha = 1.0
-            while True:
-                trial, trial_point = residual(V + alpha * du)
-                trial_value = phi(V + alpha * du)
-                tnorm = float(np.max(np.abs(trial)))
-                armijo = trial_value <= value + 1e-4 * alpha * slope
-                # near the solution Phi's change drowns in round-off: the residual decides there
-                flat = abs(trial_value - value) <= 1e-12 * (abs(value) + 1.0) and tnorm <= 0.5 * rnorm
-                if np.isfinite(tnorm) and (armijo or flat):
-                    break
-                alpha *= 0.5
-                if alpha < 1e-10:
-                    counters.n_iter += it
-                    raise StepFailure(
-                        f"Newton's line search found no decrease of implicit Euler's objective at iteration "
-                        f"{it} (residual {rnorm:.2e}, tolerance {max(tol, floor):.2e}); try a smaller dt")
-            value = trial_value
+            du, slope = _descent(solver, point, r, du)
+            try:
+                alpha, trial, trial_point, value = _armijo(residual, phi, V, du, value, slope, rnorm)
+            except StepFailure as failure:
+                counters.n_iter += it
+                raise StepFailure(f"Newton's line search found no decrease of implicit Euler's objective at "
+                                  f"iteration {it} (residual {rnorm:.2e}, tolerance {max(tol, floor):.2e}); "
+                                  f"try a smaller dt") from failure
+            tnorm = float(np.max(np.abs(trial)))
         else:
             alpha, trial, trial_point = _backtrack(residual, V, du, r, full_steps=it <= full_steps)
             tnorm = float(np.max(np.abs(trial)))
@@ -261,6 +244,48 @@ def newton_stage(system: System, xh: np.ndarray, vh: np.ndarray, c: float, tol: 
     counters.n_iter += it
     raise StepFailure(f"Newton iteration did not converge in {max_iter} iterations: {why} "
                       f"(tolerance {max(tol, floor):.2e}); try a smaller dt")
+
+
+def _descent(solver: StageSolver, point: tuple, r: np.ndarray,
+             du: np.ndarray) -> tuple[np.ndarray, float]:
+    """Return a direction along which implicit Euler's objective descends, and its slope there.
+
+    The Newton direction ``du`` when it descends; else the exact (not reused) factor's
+    direction; else a shifted positive definite matrix's (an indefinite Newton matrix: a
+    buckling spring), which always descends.
+    """
+    grad = -solver.rhs(r.ravel())
+    slope = float(grad @ du.ravel()[solver.free])
+    if not slope < 0.0 and solver.last == "modified":
+        exact = solver.direction(point, r.ravel(), exact=True, definite_only=True)
+        du = (solver.shifted_direction(r.ravel()) if exact is None else exact).reshape(du.shape)
+        slope = float(grad @ du.ravel()[solver.free])
+    if not slope < 0.0:  # indefinite Newton matrix: its direction climbs the objective
+        du = solver.shifted_direction(r.ravel()).reshape(du.shape)
+        slope = float(grad @ du.ravel()[solver.free])
+    return du, slope
+
+
+def _armijo(residual: Callable, phi: Callable, V: np.ndarray, du: np.ndarray, value: float, slope: float,
+            rnorm: float) -> tuple[float, np.ndarray, tuple, float]:
+    """Backtrack ``V + alpha du`` (alpha = 1, 1/2, ...) to Armijo's decrease of the objective ``phi``.
+
+    Returns ``(alpha, residual, point, phi)`` at the accepted step; StepFailure below
+    ``alpha = 1e-10``. Near the solution the objective's change drowns in round-off: a step
+    that halves the residual is accepted there.
+    """
+    alpha = 1.0
+    while True:
+        trial, trial_point = residual(V + alpha * du)
+        trial_value = phi(V + alpha * du)
+        tnorm = float(np.max(np.abs(trial)))
+        armijo = trial_value <= value + 1e-4 * alpha * slope
+        flat = abs(trial_value - value) <= 1e-12 * (abs(value) + 1.0) and tnorm <= 0.5 * rnorm
+        if np.isfinite(tnorm) and (armijo or flat):
+            return alpha, trial, trial_point, trial_value
+        alpha *= 0.5
+        if alpha < 1e-10:
+            raise StepFailure("no decrease")
 
 
 def _newton_coupled(method: ImplicitRK, system: System, state: State, dt: float):
