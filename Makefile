@@ -24,10 +24,15 @@ demo: $(STAMP)
 docs: $(STAMP)
 	$(PY) -m mslab.effects.docs docs/scenes.md
 
+# tests/ and the lessons under nbval (strict: every stored output) in one session of two workers,
+# a whole file per worker at a time, the longest files first (tests/conftest.py: LONGEST_FIRST),
+# so that neither worker idles at the end of one part while the other finishes it. nbval's cells
+# run in order: -p no:randomly (pytest-randomly, where installed, would shuffle them).
+PYTEST_2 := -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder -p no:randomly
+NBVAL := --nbval --nbval-current-env --nbval-sanitize-with lessons/sanitize.cfg
 test: $(STAMP) docs
 	$(VENV)/bin/ruff check .
-	$(PY) -m pytest -q -n 2 --dist loadfile tests
-	$(PY) -m pytest -q -n 2 --dist loadfile -p no:randomly --nbval --nbval-current-env --nbval-sanitize-with lessons/sanitize.cfg lessons/
+	$(PY) $(PYTEST_2) $(NBVAL) tests lessons/
 	$(PY) tools/lessons_check.py
 	$(MAKE) --no-print-directory test-emulated
 
@@ -45,9 +50,7 @@ EMULATED_TESTS := tests/test_implicit_cloth.py tests/test_newton_matrix.py tests
 	tests/hard_cases/test_ledger_order.py tests/test_stability.py
 
 test-emulated: $(STAMP)
-	$(EMULATED_CPU) $(PY) -m pytest -q -n 2 --dist loadfile -p no:cacheprovider $(EMULATED_TESTS)
-	$(EMULATED_CPU) $(PY) -m pytest -q -n 2 --dist loadfile -p no:randomly -p no:cacheprovider --nbval --nbval-current-env \
-		--nbval-sanitize-with lessons/sanitize.cfg lessons/
+	$(EMULATED_CPU) $(PY) $(PYTEST_2) -p no:cacheprovider $(NBVAL) $(EMULATED_TESTS) lessons/
 	rm -rf $(EMULATED_CACHE)
 
 # markdown sentences with a number or verdict that no claim of the notebook backs (tools/lessons_check.py)

@@ -1,8 +1,11 @@
 // Page helpers of tests/test_lab.py: run inside JupyterLab (window.jupyterapp, exposed by the
-// test's server); each returns what the test asserts on.
+// test's server); each returns what the test asserts on. Several notebooks may be open at once,
+// each with its kernel (the next lesson runs while this one is checked); every helper but open
+// acts on the current one, chosen with show(path).
 window.labTest = (() => {
   const sleep = ms => new Promise(r => setTimeout(r, ms));
-  let panel = null, seen = [], executed = 0, errored = 0;
+  const docs = new Map();     // path -> {panel, seen: kernel statuses, executed, errored}
+  let panel = null, doc = null;
   const kernel = () => panel.sessionContext.session?.kernel;
   const idle = () => kernel()?.status === 'idle';
   async function until(cond, what, seconds) {
@@ -71,26 +74,34 @@ window.labTest = (() => {
   async function open(path) {
     await jupyterapp.restored;
     panel = await jupyterapp.commands.execute('docmanager:open', {path});
+    doc = {panel, seen: [], executed: 0, errored: 0};
+    docs.set(path, doc);
     await panel.context.ready; await panel.sessionContext.ready; await panel.revealed;
     await until(() => kernel() && idle(), 'the kernel to start', 120);
     await kernel().info; await kernel().spec; await sleep(0);   // JupyterLab updates the metadata
     return report();
   }
-  function restartRunAll() {
-    seen = []; executed = 0; errored = 0;
-    panel.sessionContext.statusChanged.connect((_, s) => { seen.push(s); });
+  function restartRunAll() {     // on the notebook opened last (the active one)
+    const d = doc;
+    panel.sessionContext.statusChanged.connect((_, s) => { d.seen.push(s); });
     panel.sessionContext.iopubMessage.connect((_, m) => {
-      if (m.header.msg_type === 'execute_input') executed += 1;
-      if (m.header.msg_type === 'error') errored += 1; });
+      if (m.header.msg_type === 'execute_input') d.executed += 1;
+      if (m.header.msg_type === 'error') d.errored += 1; });
     jupyterapp.commands.execute('notebook:restart-run-all');
+    return true;
+  }
+  async function show(path) {   // make an open notebook the current one, on screen
+    doc = docs.get(path); panel = doc.panel;
+    jupyterapp.shell.activateById(panel.id);
+    await panel.revealed; await frame();
     return true;
   }
   async function waitRun(seconds) {
     const code = panel.content.widgets.filter(c => c.model.type === 'code'
                                               && c.model.sharedModel.getSource().trim());
     const queued = () => code.some(c => c.model.executionState === 'running');
-    const finished = () => executed >= code.length || errored > 0;   // Run All stops at an error
-    await until(() => seen.includes('restarting') && idle() && !queued() && finished(),
+    const d = doc, finished = () => d.executed >= code.length || d.errored > 0;   // Run All stops at an error
+    await until(() => d.seen.includes('restarting') && idle() && !queued() && finished(),
                 'Restart Kernel and Run All Cells', seconds);
     return report();
   }
@@ -124,11 +135,14 @@ window.labTest = (() => {
       empty: shown.length === 0,
     };
   }
-  async function close() {
-    if (!panel) return true;
-    await panel.sessionContext.shutdown().catch(() => null);
-    panel.dispose(); panel = null;
+  async function close(path) {    // the current notebook, or the one at path
+    const d = path === undefined ? doc : docs.get(path);
+    if (!d) return true;
+    docs.delete([...docs].find(([, v]) => v === d)[0]);
+    await d.panel.sessionContext.shutdown().catch(() => null);
+    d.panel.dispose();
+    if (d === doc) { doc = null; panel = null; }
     return true;
   }
-  return {open, report, restartRunAll, waitRun, interacts, watch, redrawn, close};
+  return {open, report, restartRunAll, show, waitRun, interacts, watch, redrawn, close};
 })();

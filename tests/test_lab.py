@@ -186,6 +186,7 @@ def page(tools, lab, tmp_path_factory):
                 pytest.fail("JupyterLab did not load in Chromium within 90 s")
             time.sleep(0.2)
         driver.execute_script(LAB_TEST_JS)
+        STARTED.clear()
         yield driver
     finally:
         children.extend(_children(proc.pid))
@@ -279,25 +280,63 @@ def _exercise_widgets(driver, widget_cells: list[int]) -> list[str]:
 
 
 def _lesson_params() -> list:
+    # the longest Run All first (tests/conftest.py: LONGEST_FIRST), the shorter ones run beside it;
     # raises=AssertionError: only a lesson's defect is expected, never a failure of the harness
+    from tests.conftest import LONGEST_FIRST
+
+    rank = {name: k for k, name in enumerate(LONGEST_FIRST)}
+    order = sorted(LESSONS, key=lambda p: rank.get(f"lessons/{p.name}", len(rank)))
     return [pytest.param(p, id=p.stem, marks=[pytest.mark.xfail(strict=False, raises=AssertionError,
                                                                 reason=KNOWN[p.stem])]
-                         if p.stem in KNOWN else []) for p in LESSONS]
+                         if p.stem in KNOWN else []) for p in order]
+
+
+#: lesson path -> what the lesson showed when opened, for a lesson opened and started (Restart
+#: Kernel and Run All Cells) ahead of its test, while the tests before it run
+STARTED: dict[str, dict] = {}
+#: how many of the next lessons run ahead, each in its tab with its kernel (memory: ~0.3 GB each)
+AHEAD = 2
+
+
+def _open_and_run_all(page, path: str) -> dict:
+    """Open a lesson (it becomes the current tab), check it as opened, then Restart & Run All."""
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.support.ui import WebDriverWait
+
+    opened = _call(page, "open", path)
+    page.execute_script("window.labTest.restartRunAll()")
+    WebDriverWait(page, 30).until(
+        lambda d: d.find_elements(By.CSS_SELECTOR, ".jp-Dialog .jp-mod-accept"))[0].click()
+    return opened
+
+
+def _next_lessons(request, n: int) -> list[Path]:
+    """The lessons of the next ``n`` browser tests this session runs (after -k, xdist)."""
+    items = request.session.items
+    later = items[items.index(request.node) + 1:]
+    return [item.callspec.params["lesson"] for item in later
+            if getattr(item, "originalname", None) == "test_lesson_in_jupyterlab"][:n]
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("lesson", _lesson_params())
-def test_lesson_in_jupyterlab(lesson: Path, lab, page) -> None:
+def test_lesson_in_jupyterlab(lesson: Path, lab, page, request) -> None:
+    """One lesson opened, Restart & Run All, every widget moved. The next ``AHEAD`` lessons are
+    opened, checked as opened and started in tabs of their own (each its kernel) before this one's
+    checks, so that the kernels share the machine's cores; every wait is on a signal (kernel
+    status, messages), never on a time."""
     path = f"lessons/{lesson.name}"
     try:
-        opened = _call(page, "open", path)
+        opened = STARTED.pop(path, None) or _open_and_run_all(page, path)
         found = _problems(opened, "opened")
-        page.execute_script("window.labTest.restartRunAll()")
-        from selenium.webdriver.common.by import By
-        from selenium.webdriver.support.ui import WebDriverWait
-
-        WebDriverWait(page, 30).until(
-            lambda d: d.find_elements(By.CSS_SELECTOR, ".jp-Dialog .jp-mod-accept"))[0].click()
+        for following in _next_lessons(request, AHEAD):
+            if (ahead := f"lessons/{following.name}") not in STARTED:
+                try:
+                    STARTED[ahead] = _open_and_run_all(page, ahead)
+                except Exception:
+                    _call(page, "close", ahead)
+                    raise
+        _call(page, "show", path)
         ran = _call(page, "waitRun", 240)
         found += _problems(ran, "after Run All")
         found += [f"after Run All: cell {c}: {e}" for c, e in ran["errors"]]
@@ -305,7 +344,7 @@ def test_lesson_in_jupyterlab(lesson: Path, lab, page) -> None:
         found += [f"after Run All: cell {c}: widget not live" for c in ran["deadWidgets"]]
         found += _exercise_widgets(page, ran["widgetCells"])
     finally:
-        _call(page, "close")
+        _call(page, "close", path)
     assert not found, f"{lesson.name}:\n  " + "\n  ".join(found)
 
 
