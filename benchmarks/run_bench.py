@@ -137,7 +137,8 @@ def main() -> int:
         "",
     ]
     # the sections from the Warp comparison on are written with their own benchmarks
-    # (warp_cloth.py, gather.py, implicit_cloth.py; spring_variants.py is in the git history): kept as they are
+    # (warp_cloth.py, gather.py, implicit_cloth.py; spring_variants.py is in the git history):
+    # kept as they are
     old = (HERE / "RESULTS.md").read_text() if (HERE / "RESULTS.md").exists() else ""
     marker = "## mslab against NVIDIA Warp (CPU)"
     text += [old[old.index(marker):].rstrip("\n")] if marker in old else warp_section()

@@ -60,7 +60,8 @@ def spring_range(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: 
         f_i = s d,   s = k (L / l - 1) - c (u . Δv) / l,   f_j = -f_i
 
     in this scale form (fewer operations between the loads of ``x`` and the stores into
-    ``f`` than ``-k (d - L u)``, which bounds the loop: measured variant by variant, ``benchmarks/RESULTS.md``).
+    ``f`` than ``-k (d - L u)``, which bounds the loop: measured variant by variant,
+    ``benchmarks/RESULTS.md``).
     The coordinates are scalars for 1, 2 or 3 dimensions (kept in registers; the tests of
     ``dim`` and ``damped`` are the same for every spring and cost nothing measurable). A
     spring of zero length has ``1/l`` taken as 0 and exerts ``-k d = 0`` (never NaN).
