@@ -27,34 +27,47 @@ from __future__ import annotations
 
 import numpy as np
 
-#: springs per batch below which the springs stay in one batch: a batch must outweigh the
-#: launch of a parallel loop (a few microseconds) by far (2048 springs take about 15 us)
+#: springs per batch: a batch must outweigh the start of a parallel loop by far (2048
+#: springs take about 15 us)
 MIN_SPRINGS_PER_BATCH = 2048
+#: fewer springs stay in one batch (no parallel loop): waking the sleeping threads costs about
+#: 40 us per parallel loop, two per force evaluation, which a step of fewer springs does not
+#: repay (measured on 2 cores: a 64 x 64 cloth, 24k springs, took 1.4x longer on two threads,
+#: a 128 x 128 one, 97k springs, 0.92x, a 300 x 300 one, 537k springs, 0.65x;
+#: benchmarks/RESULTS.md, "Threads")
+MIN_SPRINGS_PARALLEL = 65536
 #: most blocks of particles; 32 keep two phases of 16 batches busy on up to 16 threads
 MAX_BLOCKS = 32
 
 
-def block_count(n_particles: int, n_springs: int) -> int:
+def block_count(n_particles: int, n_springs: int, min_parallel: int = MIN_SPRINGS_PARALLEL,
+                per_batch: int = MIN_SPRINGS_PER_BATCH) -> int:
     """Return the number of particle blocks ``B`` (1: one batch, no parallel loop).
 
-    At least :data:`MIN_SPRINGS_PER_BATCH` springs per batch, at most :data:`MAX_BLOCKS`
-    blocks, at least 4 particles per block; from the sizes alone (never the thread count).
+    One below ``min_parallel`` springs (:data:`MIN_SPRINGS_PARALLEL`); else at least
+    ``per_batch`` springs per batch (:data:`MIN_SPRINGS_PER_BATCH`), at most
+    :data:`MAX_BLOCKS` blocks, at least 4 particles per block; from the sizes alone (never the
+    thread count).
     """
-    blocks = min(MAX_BLOCKS, n_springs // MIN_SPRINGS_PER_BATCH, n_particles // 4)
+    if n_springs < min_parallel:
+        return 1
+    blocks = min(MAX_BLOCKS, n_springs // per_batch, n_particles // 4)
     return max(1, int(blocks))
 
 
-def batches(i: np.ndarray, j: np.ndarray, n_particles: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def batches(i: np.ndarray, j: np.ndarray, n_particles: int, **sizes: int) -> tuple[np.ndarray, np.ndarray,
+                                                                                    np.ndarray]:
     """Return ``(order, ranges, phases)``: the springs in batch order, batch and phase offsets.
 
     ``order`` permutes the springs (``i[order]`` ...): batch ``r`` is springs
     ``ranges[r]:ranges[r+1]`` of the permuted table, phase ``p`` is batches
-    ``phases[p]:phases[p+1]``. No two batches of one phase share a particle.
+    ``phases[p]:phases[p+1]``. No two batches of one phase share a particle. ``sizes``:
+    the thresholds of :func:`block_count` (tests use small ones).
     """
     i = np.asarray(i, dtype=np.int64)
     j = np.asarray(j, dtype=np.int64)
     m = i.size
-    blocks = block_count(n_particles, m)
+    blocks = block_count(n_particles, m, **sizes)
     if blocks == 1:
         return np.arange(m), np.array([0, m], dtype=np.int64), np.array([0, 1], dtype=np.int64)
     bi = i * blocks // n_particles
