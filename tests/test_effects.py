@@ -14,6 +14,7 @@ import mslab
 from mslab.effects import Damping, Gravity, Plane, Sphere, Springs, effect_classes, registry
 from mslab.effects import docs as effect_docs
 from mslab.errors import SceneError
+from mslab.jit import compiled
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -283,8 +284,8 @@ KERNEL_CLASSES = [cls for cls in CLASSES if cls.kernel is not None]
 @pytest.mark.parametrize("cls", KERNEL_CLASSES, ids=[c.name for c in KERNEL_CLASSES])
 @pytest.mark.parametrize("dim", DIMS)
 def test_kernel_equals_numpy(cls, dim):
-    numba = pytest.importorskip("numba")
-    kernel = numba.njit(cache=False)(cls.kernel)
+    pytest.importorskip("numba")
+    kernel = compiled(cls.kernel)  # the one way mslab compiles (helpers, prange)
     for seed in SEEDS:
         effect, x, v, _ = built_effect(cls, dim, seed)
         params = effect.kernel_params()
@@ -302,8 +303,8 @@ def test_kernel_equals_numpy(cls, dim):
 
 
 def test_springs_kernel_zero_length_and_undamped():
-    numba = pytest.importorskip("numba")
-    kernel = numba.njit(cache=False)(Springs.kernel)
+    pytest.importorskip("numba")
+    kernel = compiled(Springs.kernel)  # the one way mslab compiles (helpers, prange)
     rng = np.random.default_rng(2)
     for dim in DIMS:
         for damped in (False, True):
@@ -322,8 +323,8 @@ def test_springs_kernel_zero_length_and_undamped():
 @pytest.mark.parametrize("friction", [0.0, 0.5])
 def test_collider_kernel_edge_cases(friction):
     """One kernel for both colliders: a particle at the sphere's centre, on the plane, outside, at rest."""
-    numba = pytest.importorskip("numba")
-    kernel = numba.njit(cache=False)(Plane.kernel)
+    pytest.importorskip("numba")
+    kernel = compiled(Plane.kernel)  # the one way mslab compiles (helpers, prange)
     assert Sphere.kernel is Plane.kernel
     rng = np.random.default_rng(4)
     for dim in DIMS:
