@@ -48,7 +48,7 @@ def numba() -> Any:
     if not _listening:
         # numba's OpenMP threads sleep between parallel loops instead of spinning (unless the
         # user chose): spinning threads made the spring loop 20-150x slower on a loaded 2-core
-        # machine, and no faster on an idle one (benchmarks/RESULTS.md, "Threads")
+        # machine; they gain up to a third on an idle one (README, "Speed")
         os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
         with protected("loading numba"):
             import numba  # noqa: F401
