@@ -272,13 +272,16 @@ def test_compiled_local_step_equals_numpy():
     x[7] = x[8]  # a spring of zero length: no force
     free_idx = np.flatnonzero(~s.pinned)
     extra, base = rng.standard_normal(x.shape), rng.standard_normal((free_idx.size, 3))
-    jd, rhs = np.empty_like(x), np.empty(base.shape, order="F")
-    args = (x, springs.i, springs.j, springs.stiffness, springs.rest_length, extra, base, 1e-3, free_idx)
-    local_step.local_rhs(*args, jd, rhs)
-    jd_ref, rhs_ref = local_step.local_rhs_numpy(*args)
-    scale = np.abs(jd_ref).max()
-    assert np.abs(jd - jd_ref).max() <= 1e-12 * scale
-    assert np.abs(rhs - rhs_ref).max() <= 1e-12 * np.abs(rhs_ref).max()
+    for dim in (2, 3):  # the unrolled 3D loop and the general one (projections_py)
+        xd, extra_d, base_d = (np.ascontiguousarray(a[:, :dim]) for a in (x, extra, base))
+        jd, rhs = np.empty_like(xd), np.empty(base_d.shape, order="F")
+        args = (xd, springs.i, springs.j, springs.stiffness, springs.rest_length, extra_d, base_d, 1e-3,
+                free_idx)
+        local_step.local_rhs(*args, jd, rhs)
+        jd_ref, rhs_ref = local_step.local_rhs_numpy(*args)
+        scale = np.abs(jd_ref).max()
+        assert np.abs(jd - jd_ref).max() <= 1e-12 * scale
+        assert np.abs(rhs - rhs_ref).max() <= 1e-12 * np.abs(rhs_ref).max()
     for chebyshev, omega, relax in [(False, 1.0, 1.0), (True, 1.0, 1.0), (True, 1.7, 1.0), (True, 1.7, 1.9)]:
         xa, prev = x.copy(), x + rng.standard_normal(x.shape)
         prev_in = prev.copy()

@@ -71,21 +71,8 @@ def local_rhs_py(x: np.ndarray, i: np.ndarray, j: np.ndarray, stiffness: np.ndar
                 jd[b, 0] -= scale * d0
                 jd[b, 1] -= scale * d1
                 jd[b, 2] -= scale * d2
-    else:  # the loop of projections_py (numba cannot call it uncompiled)
-        for q in range(i.shape[0]):
-            a = i[q]
-            b = j[q]
-            length2 = 0.0
-            for c in range(dim):
-                diff = x[a, c] - x[b, c]
-                length2 += diff * diff
-            length = np.sqrt(length2)
-            if length > 0.0:
-                scale = stiffness[q] * rest_length[q] / length
-                for c in range(dim):
-                    p = scale * (x[a, c] - x[b, c])
-                    jd[a, c] += p
-                    jd[b, c] -= p
+    else:  # compiled with it by mslab.jit.compiled (a helper of this module)
+        projections_py(x, i, j, stiffness, rest_length, jd)
     for a in range(n):
         for c in range(dim):
             jd[a, c] += extra[a, c]
