@@ -79,6 +79,8 @@ def _main(argv: list[str] | None) -> int:
         return int(args.func(args) or 0)
     except (CommandError, MslabError, ValueError, OSError) as err:
         message = str(err).splitlines()[0] if str(err) else type(err).__name__
+        if isinstance(err, OSError) and err.filename and err.strerror:  # not "[Errno 13] ...: 'path'"
+            message = f"{err.filename}: {err.strerror.lower()}"
         print(f"mslab: error: {message}", file=sys.stderr)
         return 2
 

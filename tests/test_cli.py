@@ -209,3 +209,19 @@ def test_scenes_and_validate_commands(capsys):
     assert main(["validate", "chain", str(scene_path("cloth"))]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert len(lines) == 2 and all(": ok (" in line for line in lines)
+
+
+def test_an_unwritable_output_is_one_line_naming_the_file(tmp_path, capsys, monkeypatch):
+    """An OSError from the system (here: a folder where the CSV goes) reads FILE: reason, no errno."""
+    import mslab.cli as cli
+
+    def refuse(args):
+        raise PermissionError(13, "Permission denied", str(tmp_path / "book.csv.journal"))
+
+    parser = cli.build_parser()
+    args = parser.parse_args(["validate", "x.toml"])
+    monkeypatch.setattr(cli, "build_parser", lambda: type("P", (), {"parse_args": lambda self, a: args})())
+    args.func = refuse
+    assert cli.main(["validate", "x.toml"]) == 2
+    assert capsys.readouterr().err.splitlines() == [f"mslab: error: {tmp_path / 'book.csv.journal'}: "
+                                                    "permission denied"]
