@@ -154,3 +154,19 @@ def test_small_scenes_stay_one_batch():
     order, ranges, phases = batches(springs.i, springs.j, scene.system.n_particles)
     assert len(springs.i) < MIN_SPRINGS_PARALLEL
     assert np.array_equal(order, np.arange(len(springs.i))) and ranges.tolist() == [0, len(springs.i)]
+
+
+@pytest.mark.parametrize("preset, expected", [(None, "PASSIVE"), ("ACTIVE", "ACTIVE")])
+def test_openmp_threads_sleep_unless_the_user_chose(preset, expected):
+    """Loading numba through mslab sets OMP_WAIT_POLICY=PASSIVE, never over the user's own choice."""
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k != "OMP_WAIT_POLICY"}
+    if preset is not None:
+        env["OMP_WAIT_POLICY"] = preset
+    code = "import os; from mslab.jit import numba; numba(); print(os.environ['OMP_WAIT_POLICY'])"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == expected
