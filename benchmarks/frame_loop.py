@@ -179,7 +179,7 @@ def _threads_used(sim) -> int:
     from mslab.effects import Springs
 
     springs = next(e for e in sim.system.effects if isinstance(e, Springs))
-    one_batch = len(springs.kernel_params()[6]) == 2
+    one_batch = len(springs.kernel_params()[8]) == 2
     return 1 if one_batch else (sim.threads or mslab.jit.numba().config.NUMBA_NUM_THREADS)
 
 

@@ -88,7 +88,7 @@ def test_batched_kernel_equals_numpy_reference(dim, damped):
     """The compiled, batched sum equals System.force (another summation order: round-off only)."""
     system, x, v = cloth_state(dim, damped)
     springs = next(e for e in system.effects if isinstance(e, Springs))
-    assert len(springs.kernel_params()[6]) > 3  # several batches: the parallel path runs
+    assert len(springs.kernel_params()[8]) > 3  # several batches: the parallel path runs
     f, power = fast.ForceModel(system).force(x, v)
     ref = system.force(x, v)
     # each entry sums at most 12 pair forces of size |k d|: error about 12 eps of that size

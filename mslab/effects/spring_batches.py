@@ -20,6 +20,10 @@ same order whichever thread computes them, so positions are bitwise the same on 
 threads. (They differ in round-off from a loop over the springs in scene order: another
 order of summation; ``tests/test_fast.py`` holds both to the numpy reference.)
 
+Each batch is then cut into *runs* (consecutive springs between consecutive particles, rows of
+a mesh) and plain stretches (:func:`segments`): a run's loop touches contiguous memory, so the
+compiler vectorises it, with the same sums in the same order.
+
 Cost: ``O(n_springs log n_springs)`` once per scene (a stable sort), kept on the effect.
 """
 
@@ -84,3 +88,49 @@ def batches(i: np.ndarray, j: np.ndarray, n_particles: int, **sizes: int) -> tup
     phases = np.array([0, n_even, blocks, blocks + 1], dtype=np.int64)
     return order, ranges, phases
 
+
+
+#: shortest run worth its own vectorised loop (a shorter one costs its set-up)
+MIN_RUN = 48
+#: longest run in one go: its forces (3 x 8 bytes per spring) stay in the first-level cache
+MAX_RUN = 1024
+
+
+def segments(i: np.ndarray, j: np.ndarray, ranges: np.ndarray, min_run: int = MIN_RUN,
+             max_run: int = MAX_RUN) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Cut each batch into *runs* and plain segments; return ``(bounds, run, batch_segments)``.
+
+    A *run* is a stretch of consecutive springs ``(a + s, b + s)``, ``s = 0 .. m-1``, with
+    ``b > a`` (a row of structural, shear or bend springs of a mesh generator): its ends are
+    consecutive particles, so its loop reads and writes contiguous memory and the compiler
+    vectorises it (:func:`mslab.effects.spring_kernels.spring_run`). Everything else is a
+    plain segment, summed spring by spring (:func:`~mslab.effects.spring_kernels.spring_range`).
+    Segment ``s`` is springs ``bounds[s]:bounds[s+1]``, a run if ``run[s]``; batch ``r`` is
+    segments ``batch_segments[r]:batch_segments[r+1]``. Runs shorter than ``min_run`` are
+    plain; longer than ``max_run`` are cut in pieces. The springs keep their order, and so
+    does every particle's sum (``spring_run`` adds the ``j`` ends first: ``b > a``), so the
+    forces are bitwise those of one loop over the batch. Cost ``O(n_springs)``, once per scene.
+    """
+    i = np.asarray(i, dtype=np.int64)
+    j = np.asarray(j, dtype=np.int64)
+    ranges = np.asarray(ranges, dtype=np.int64)
+    m = i.size
+    if m == 0:
+        return np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(ranges.size, dtype=np.int64)
+    offset = j - i
+    new = np.ones(m, dtype=bool)
+    new[1:] = (i[1:] != i[:-1] + 1) | (offset[1:] != offset[:-1])
+    new[ranges[:-1][ranges[:-1] < m]] = True  # a run never crosses a batch
+    start = np.flatnonzero(new)
+    length = np.diff(np.append(start, m))
+    vector = (length >= min_run) & (offset[start] > 0)
+    pieces = -(-length[vector] // max_run)
+    first_piece = np.repeat(np.cumsum(pieces) - pieces, pieces)
+    piece_start = np.repeat(start[vector], pieces) + (np.arange(pieces.sum()) - first_piece) * max_run
+    after_run = np.concatenate([[True], vector[:-1]])
+    plain_start = start[~vector & (after_run | np.isin(start, ranges))]
+    bounds = np.concatenate([piece_start, plain_start])
+    run = np.concatenate([np.ones(piece_start.size, np.int64), np.zeros(plain_start.size, np.int64)])
+    order = np.argsort(bounds, kind="stable")
+    bounds, run = np.append(bounds[order], m), run[order]
+    return bounds, run, np.searchsorted(bounds[:-1], ranges).astype(np.int64)

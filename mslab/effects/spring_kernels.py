@@ -17,57 +17,87 @@ from mslab.jit import prange
 
 def spring_kernel(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: np.ndarray,
                   stiffness: np.ndarray, rest_length: np.ndarray, damping: np.ndarray,
-                  damped: int, ranges: np.ndarray, phases: np.ndarray) -> float:
+                  damped: int, bounds: np.ndarray, run: np.ndarray, batches: np.ndarray,
+                  phases: np.ndarray) -> float:
     """Add the spring forces to ``f`` (n_particles, dim) in place; return the dissipated power.
 
     The springs come in conflict-free batches (:mod:`mslab.effects.spring_batches`): batch
-    ``r`` is springs ``ranges[r]:ranges[r+1]``, phase ``p`` is batches
+    ``r`` is segments ``batches[r]:batches[r+1]`` (segment ``s``: springs
+    ``bounds[s]:bounds[s+1]``, a vectorisable run if ``run[s]``), phase ``p`` is batches
     ``phases[p]:phases[p+1]``, and no two batches of one phase touch the same particle. The
     batches of a phase run on all threads (numba's ``prange``); each is summed by
-    :func:`spring_range` in its own order, and the powers of the batches are added in
+    :func:`spring_batch` in its own order, and the powers of the batches are added in
     batch order, so the result is bitwise the same for any number of threads. A phase of one
     batch runs on the calling thread (no parallel launch: small scenes pay nothing).
 
     Cost: one square root and one division per spring; work ``O(n_springs)``, span
     ``O(n_springs / n_threads)`` plus the springs of the serial phases.
     """
-    n_batches = ranges.shape[0] - 1
+    n_batches = batches.shape[0] - 1
     powers = np.empty(n_batches)  # (np.zeros would be a parallel loop of its own: a launch per call)
     for p in range(phases.shape[0] - 1):
         first = phases[p]
         last = phases[p + 1]
         if last - first > 1:
             for r in prange(first, last):
-                powers[r] = spring_range(x, v, f, i, j, stiffness, rest_length, damping, damped,
-                                         ranges[r], ranges[r + 1])
+                powers[r] = spring_batch(x, v, f, i, j, stiffness, rest_length, damping, damped,
+                                         bounds, run, batches[r], batches[r + 1])
         else:
             for r in range(first, last):
-                powers[r] = spring_range(x, v, f, i, j, stiffness, rest_length, damping, damped,
-                                         ranges[r], ranges[r + 1])
+                powers[r] = spring_batch(x, v, f, i, j, stiffness, rest_length, damping, damped,
+                                         bounds, run, batches[r], batches[r + 1])
     power = 0.0
     for r in range(n_batches):
         power += powers[r]
     return power
 
 
+def spring_batch(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: np.ndarray,
+                 stiffness: np.ndarray, rest_length: np.ndarray, damping: np.ndarray, damped: int,
+                 bounds: np.ndarray, run: np.ndarray, first: int, last: int) -> float:
+    """Add the forces of segments ``first:last`` (one batch) to ``f``; return their dissipated power.
+
+    Runs go through :func:`spring_run` in three dimensions, the rest (and every segment in
+    one or two dimensions) through :func:`spring_range`: the same sums in the same order as
+    :func:`spring_range` over the whole batch, bitwise the same forces (the power differs by
+    round-off: a run sums it in lanes).
+    """
+    longest = 0
+    for s in range(first, last):
+        longest = max(longest, np.int64(bounds[s + 1]) - np.int64(bounds[s]))
+    runs = x.shape[1] == 3
+    pair = np.empty(3 * longest if runs else 0)  # a run's pair forces
+    rates = np.empty(longest if runs and damped else 0)  # a run's dissipated powers
+    power = 0.0
+    for s in range(first, last):
+        start = bounds[s]
+        stop = bounds[s + 1]
+        if runs and run[s]:
+            power = spring_run(x, v, f, stiffness, rest_length, damping, damped, np.int64(i[start]),
+                               np.int64(j[start]), np.int64(start), np.int64(stop), power, pair, rates)
+        else:
+            power = spring_range(x, v, f, i, j, stiffness, rest_length, damping, damped, start, stop,
+                                 power)
+    return power
+
+
 def spring_range(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: np.ndarray,
                  stiffness: np.ndarray, rest_length: np.ndarray, damping: np.ndarray, damped: int,
-                 start: int, stop: int) -> float:
-    """Add the forces of springs ``start:stop`` to ``f``; return their dissipated power.
+                 start: int, stop: int, power: float) -> float:
+    """Add the forces of springs ``start:stop`` to ``f``; return ``power`` plus their dissipated power.
 
-    The one compiled statement of a spring's force (the class's formula, ``u = d / l``)::
+    The compiled statement of a spring's force (the class's formula, ``u = d / l``)::
 
         f_i = s d,   s = k (L / l - 1) - c (u . Δv) / l,   f_j = -f_i
 
     in this scale form (fewer operations between the loads of ``x`` and the stores into
     ``f`` than ``-k (d - L u)``, which bounds the loop: measured variant by variant,
-    ``benchmarks/RESULTS.md``).
+    ``benchmarks/RESULTS.md``); :func:`spring_run` is the same statement for a run.
     The coordinates are scalars for 1, 2 or 3 dimensions (kept in registers; the tests of
     ``dim`` and ``damped`` are the same for every spring and cost nothing measurable). A
     spring of zero length has ``1/l`` taken as 0 and exerts ``-k d = 0`` (never NaN).
     """
     dim = x.shape[1]
-    power = 0.0
     for q in range(start, stop):
         a = i[q]
         b = j[q]
@@ -96,6 +126,105 @@ def spring_range(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: 
             f[a, 2] += s * dz
             f[b, 2] -= s * dz
     return power
+
+
+def spring_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, stiffness: np.ndarray,
+               rest_length: np.ndarray, damping: np.ndarray, damped: int, a: int, b: int,
+               start: int, stop: int, power: float, pair: np.ndarray, rates: np.ndarray) -> float:
+    """Add the forces of a run of springs in 3D to ``f``; return ``power`` plus their dissipated power.
+
+    Springs ``start:stop`` join particles ``a + s`` and ``b + s`` (``s = 0 .. m-1``, ``b > a``,
+    :func:`mslab.effects.spring_batches.segments`). :func:`spring_range`'s statement, in
+    loops over contiguous memory that the compiler vectorises (square roots and divisions
+    several at a time): the pair forces ``f_q`` into ``pair`` (and the powers into ``rates``),
+    then ``+f_q`` into the ``i`` ends and ``-f_q`` into the ``j`` ends, a particle with both
+    receiving ``-f`` of spring ``p - b`` before ``+f`` of spring ``p - a``: in spring order as
+    in :func:`spring_range`, so the forces are bitwise the same, in about half the time
+    (``benchmarks/RESULTS.md``). The powers are summed by :func:`lane_sum` (round-off apart
+    from a sum in spring order; the same on every machine and thread count).
+    """
+    m = stop - start
+    flat_x = x.reshape(x.size)
+    flat_f = f.reshape(f.size)
+    xa = flat_x[3 * a:3 * (a + m)]
+    xb = flat_x[3 * b:3 * (b + m)]
+    k = stiffness[start:stop]
+    rest = rest_length[start:stop]
+    out = pair[:3 * m]
+    if damped:
+        flat_v = v.reshape(v.size)
+        va = flat_v[3 * a:3 * (a + m)]
+        vb = flat_v[3 * b:3 * (b + m)]
+        c = damping[start:stop]
+        rate_of = rates[:m]
+        for s in range(m):
+            dx = xa[3 * s] - xb[3 * s]
+            dy = xa[3 * s + 1] - xb[3 * s + 1]
+            dz = xa[3 * s + 2] - xb[3 * s + 2]
+            length = np.sqrt(dx * dx + dy * dy + dz * dz)
+            inv_l = 1.0 / length if length > 0.0 else 0.0
+            scale = k[s] * (rest[s] * inv_l - 1.0)
+            rate = dx * (va[3 * s] - vb[3 * s])
+            rate += dy * (va[3 * s + 1] - vb[3 * s + 1])
+            rate += dz * (va[3 * s + 2] - vb[3 * s + 2])
+            rate *= inv_l
+            cr = c[s] * rate
+            rate_of[s] = cr * rate
+            scale -= cr * inv_l
+            out[3 * s] = scale * dx
+            out[3 * s + 1] = scale * dy
+            out[3 * s + 2] = scale * dz
+        power += lane_sum(rate_of)
+    else:
+        for s in range(m):
+            dx = xa[3 * s] - xb[3 * s]
+            dy = xa[3 * s + 1] - xb[3 * s + 1]
+            dz = xa[3 * s + 2] - xb[3 * s + 2]
+            length = np.sqrt(dx * dx + dy * dy + dz * dz)
+            inv_l = 1.0 / length if length > 0.0 else 0.0
+            scale = k[s] * (rest[s] * inv_l - 1.0)
+            out[3 * s] = scale * dx
+            out[3 * s + 1] = scale * dy
+            out[3 * s + 2] = scale * dz
+    # f[a + s] += out[s] and f[b + s] -= out[s], the j end first where a particle has both ends
+    shift = 3 * (b - a)
+    span = flat_f[3 * a:3 * (b + m)]
+    both = min(shift, 3 * m)
+    for t in range(both):  # particles with an i end only
+        span[t] += out[t]
+    twice = span[shift:3 * m]
+    late = out[shift:3 * m] if shift < 3 * m else out[:0]
+    for t in range(twice.shape[0]):  # both ends: -f of spring p - b, then +f of spring p - a
+        twice[t] = (twice[t] - out[t]) + late[t]
+    tail = span[max(shift, 3 * m):]
+    early = out[max(3 * m - shift, 0):]
+    for t in range(tail.shape[0]):  # a j end only
+        tail[t] -= early[t]
+    return power
+
+
+def lane_sum(values: np.ndarray) -> float:
+    """Return the sum of ``values`` in eight lanes: ``values[s]`` into lane ``s % 8``, lanes added pairwise.
+
+    Eight independent running sums instead of one (whose every addition waits for the
+    previous: about 1 ns a value); the order is fixed by the code, never by the machine or
+    the compiler (no reassociation is allowed), so the result is the same everywhere.
+    """
+    n = values.shape[0]
+    body = n - n % 8
+    s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = 0.0
+    for q in range(0, body, 8):
+        s0 += values[q]
+        s1 += values[q + 1]
+        s2 += values[q + 2]
+        s3 += values[q + 3]
+        s4 += values[q + 4]
+        s5 += values[q + 5]
+        s6 += values[q + 6]
+        s7 += values[q + 7]
+    for q in range(body, n):
+        s0 += values[q]
+    return ((s0 + s1) + (s2 + s3)) + ((s4 + s5) + (s6 + s7))
 
 
 def spring_jacobian_kernel(x: np.ndarray, v: np.ndarray, i: np.ndarray, j: np.ndarray,

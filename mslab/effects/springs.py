@@ -15,7 +15,7 @@ import numpy as np
 from mslab.effects.base import Body, BuildContext, Builder, Effect, HookeSprings
 from mslab.effects.registry import register
 from mslab.effects.schema import Key, check_keys
-from mslab.effects.spring_batches import batches
+from mslab.effects.spring_batches import batches, segments
 from mslab.effects.spring_kernels import scatter_pair_blocks, spring_jacobian_kernel, spring_kernel
 from mslab.effects.spring_table import SPRING_KINDS, SpringTable
 
@@ -241,15 +241,19 @@ class Springs(Effect):
         return HookeSprings(self.i, self.j, self.stiffness, self.rest_length, self.kind)
 
     def kernel_params(self) -> tuple:
-        """Return :func:`spring_kernel`'s ``(i, j, stiffness, rest_length, damping, damped, ranges, phases)``.
+        """Return the parameters of :func:`spring_kernel` (after ``x, v, f``).
 
-        The spring arrays in the order of their conflict-free batches
-        (:func:`mslab.effects.spring_batches.batches`), computed once per effect.
+        ``(i, j, stiffness, rest_length, damping, damped, bounds, run, batches, phases)``: the
+        spring arrays in the order of their conflict-free batches
+        (:func:`mslab.effects.spring_batches.batches`), each batch cut into runs and plain
+        segments (:func:`~mslab.effects.spring_batches.segments`); computed once per effect.
         """
         if self._batched is None:
             order, ranges, phases = batches(self.i, self.j, self.n)
-            self._batched = (self.i[order], self.j[order], self.stiffness[order], self.rest_length[order],
-                             self.damping[order], int(self.dissipative), ranges, phases)
+            i, j = self.i[order], self.j[order]
+            bounds, run, batch_segments = segments(i, j, ranges)
+            self._batched = (i, j, self.stiffness[order], self.rest_length[order], self.damping[order],
+                             int(self.dissipative), bounds, run, batch_segments, phases)
         return self._batched
 
     # -- scene description -----------------------------------------------------------------------
