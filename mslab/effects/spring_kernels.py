@@ -86,16 +86,10 @@ def spring_range(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: 
                  start: int, stop: int, power: float) -> float:
     """Add the forces of springs ``start:stop`` to ``f``; return ``power`` plus their dissipated power.
 
-    The compiled statement of a spring's force (the class's formula, ``u = d / l``)::
-
-        f_i = s d,   s = k (L / l - 1) - c (u . Δv) / l,   f_j = -f_i
-
-    in this scale form (fewer operations between the loads of ``x`` and the stores into
-    ``f`` than ``-k (d - L u)``, which bounds the loop: measured variant by variant,
-    ``benchmarks/RESULTS.md``); :func:`spring_run` is the same statement for a run.
-    The coordinates are scalars for 1, 2 or 3 dimensions (kept in registers; the tests of
-    ``dim`` and ``damped`` are the same for every spring and cost nothing measurable). A
-    spring of zero length has ``1/l`` taken as 0 and exerts ``-k d = 0`` (never NaN).
+    Spring by spring in scene order: ``f_i += s d``, ``f_j -= s d`` with ``s`` from
+    :func:`pair_scale`. The coordinates are scalars for 1, 2 or 3 dimensions (kept in
+    registers; the tests of ``dim`` and ``damped`` are the same for every spring and cost
+    nothing measurable).
     """
     dim = x.shape[1]
     for q in range(start, stop):
@@ -104,19 +98,15 @@ def spring_range(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: 
         dx = x[a, 0] - x[b, 0]
         dy = x[a, 1] - x[b, 1] if dim > 1 else 0.0
         dz = x[a, 2] - x[b, 2] if dim > 2 else 0.0
-        length = np.sqrt(dx * dx + dy * dy + dz * dz)
-        inv_l = 1.0 / length if length > 0.0 else 0.0
-        s = stiffness[q] * (rest_length[q] * inv_l - 1.0)
+        rate = 0.0
         if damped:
             rate = dx * (v[a, 0] - v[b, 0])
             if dim > 1:
                 rate += dy * (v[a, 1] - v[b, 1])
             if dim > 2:
                 rate += dz * (v[a, 2] - v[b, 2])
-            rate *= inv_l  # u . (v_i - v_j), the stretch rate
-            cr = damping[q] * rate
-            power += cr * rate
-            s -= cr * inv_l
+        s, p = pair_scale(dx, dy, dz, rate, stiffness[q], rest_length[q], damping[q], damped)
+        power += p
         f[a, 0] += s * dx
         f[b, 0] -= s * dx
         if dim > 1:
@@ -128,13 +118,38 @@ def spring_range(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: 
     return power
 
 
+def pair_scale(dx: float, dy: float, dz: float, rate: float, stiffness: float, rest_length: float,
+               damping: float, damped: int) -> tuple[float, float]:
+    """Return ``(s, p)``: a spring's force ``s d`` on ``i`` (``-s d`` on ``j``), its dissipated power ``p``.
+
+    The one compiled statement of a spring's force (the class's formula, ``u = d / l``)::
+
+        s = k (L / l - 1) - c (u . Δv) / l,   p = c (u . Δv)^2
+
+    with ``d = x_i - x_j`` (``dx, dy, dz``; 0 for missing dimensions) and ``rate = d . Δv``
+    (``Δv = v_i - v_j``; only read when ``damped``). This scale form has fewer operations
+    between the loads of ``x`` and the stores into ``f`` than ``-k (d - L u)``, which bounds
+    the loop (measured variant by variant, ``benchmarks/RESULTS.md``). A spring of zero
+    length has ``1/l`` taken as 0 and exerts ``-k d = 0`` (never NaN). Cost: one square root,
+    one division.
+    """
+    length = np.sqrt(dx * dx + dy * dy + dz * dz)
+    inv_l = 1.0 / length if length > 0.0 else 0.0
+    s = stiffness * (rest_length * inv_l - 1.0)
+    if damped:
+        rate *= inv_l  # u . (v_i - v_j), the stretch rate
+        cr = damping * rate
+        return s - cr * inv_l, cr * rate
+    return s, 0.0
+
+
 def spring_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, stiffness: np.ndarray,
                rest_length: np.ndarray, damping: np.ndarray, damped: int, a: int, b: int,
                start: int, stop: int, power: float, pair: np.ndarray, rates: np.ndarray) -> float:
     """Add the forces of a run of springs in 3D to ``f``; return ``power`` plus their dissipated power.
 
     Springs ``start:stop`` join particles ``a + s`` and ``b + s`` (``s = 0 .. m-1``, ``b > a``,
-    :func:`mslab.effects.spring_batches.segments`). :func:`spring_range`'s statement, in
+    :func:`mslab.effects.spring_batches.segments`). :func:`pair_scale` for each, in
     loops over contiguous memory that the compiler vectorises (square roots and divisions
     several at a time): the pair forces ``f_q`` into ``pair`` (and the powers into ``rates``),
     then ``+f_q`` into the ``i`` ends and ``-f_q`` into the ``j`` ends, a particle with both
@@ -161,16 +176,11 @@ def spring_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, stiffness: np.ndarra
             dx = xa[3 * s] - xb[3 * s]
             dy = xa[3 * s + 1] - xb[3 * s + 1]
             dz = xa[3 * s + 2] - xb[3 * s + 2]
-            length = np.sqrt(dx * dx + dy * dy + dz * dz)
-            inv_l = 1.0 / length if length > 0.0 else 0.0
-            scale = k[s] * (rest[s] * inv_l - 1.0)
             rate = dx * (va[3 * s] - vb[3 * s])
             rate += dy * (va[3 * s + 1] - vb[3 * s + 1])
             rate += dz * (va[3 * s + 2] - vb[3 * s + 2])
-            rate *= inv_l
-            cr = c[s] * rate
-            rate_of[s] = cr * rate
-            scale -= cr * inv_l
+            scale, p = pair_scale(dx, dy, dz, rate, k[s], rest[s], c[s], 1)
+            rate_of[s] = p
             out[3 * s] = scale * dx
             out[3 * s + 1] = scale * dy
             out[3 * s + 2] = scale * dz
@@ -180,17 +190,15 @@ def spring_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, stiffness: np.ndarra
             dx = xa[3 * s] - xb[3 * s]
             dy = xa[3 * s + 1] - xb[3 * s + 1]
             dz = xa[3 * s + 2] - xb[3 * s + 2]
-            length = np.sqrt(dx * dx + dy * dy + dz * dz)
-            inv_l = 1.0 / length if length > 0.0 else 0.0
-            scale = k[s] * (rest[s] * inv_l - 1.0)
+            scale, _ = pair_scale(dx, dy, dz, 0.0, k[s], rest[s], 0.0, 0)
             out[3 * s] = scale * dx
             out[3 * s + 1] = scale * dy
             out[3 * s + 2] = scale * dz
     # f[a + s] += out[s] and f[b + s] -= out[s], the j end first where a particle has both ends
     shift = 3 * (b - a)
     span = flat_f[3 * a:3 * (b + m)]
-    both = min(shift, 3 * m)
-    for t in range(both):  # particles with an i end only
+    head = min(shift, 3 * m)
+    for t in range(head):  # particles with an i end only
         span[t] += out[t]
     twice = span[shift:3 * m]
     late = out[shift:3 * m] if shift < 3 * m else out[:0]
