@@ -36,10 +36,11 @@ import numpy as np
 MIN_SPRINGS_PER_BATCH = 2048
 #: fewer springs stay in one batch (no parallel loop): waking the sleeping threads costs about
 #: 40 us per parallel loop, two per force evaluation, which a step of fewer springs does not
-#: repay (measured on 2 cores: a 64 x 64 cloth, 24k springs, took 1.4x longer on two threads,
-#: a 128 x 128 one, 97k springs, 0.92x, a 300 x 300 one, 537k springs, 0.65x;
-#: benchmarks/RESULTS.md, "Threads")
-MIN_SPRINGS_PARALLEL = 65536
+#: repay. Measured on 2 cores with the vectorised runs (step time on two threads / one, 41
+#: interleaved frames): 128 x 128 cloth (97k springs) 1.08, 150 x 150 (134k) 1.05, 180 x 180
+#: (193k) 0.86, 220 x 220 (288k) 0.85, 300 x 300 (537k) 0.75 (benchmarks/RESULTS.md, "Runs";
+#: before the runs, at twice the time per spring, the threshold was 65,536)
+MIN_SPRINGS_PARALLEL = 160_000
 #: most blocks of particles; 32 keep two phases of 16 batches busy on up to 16 threads
 MAX_BLOCKS = 32
 
@@ -107,7 +108,7 @@ def segments(i: np.ndarray, j: np.ndarray, ranges: np.ndarray, min_run: int = MI
     plain segment, summed spring by spring (:func:`~mslab.effects.spring_kernels.spring_range`).
     Segment ``s`` is springs ``bounds[s]:bounds[s+1]``, a run if ``run[s]``; batch ``r`` is
     segments ``batch_segments[r]:batch_segments[r+1]``. Runs shorter than ``min_run`` are
-    plain; longer than ``max_run`` are cut in pieces. The springs keep their order, and so
+    plain; longer than ``max_run`` are cut in pieces of equal length. The springs keep their order, and so
     does every particle's sum (``spring_run`` adds the ``j`` ends first: ``b > a``), so the
     forces are bitwise those of one loop over the batch. Cost ``O(n_springs)``, once per scene.
     """
@@ -125,8 +126,9 @@ def segments(i: np.ndarray, j: np.ndarray, ranges: np.ndarray, min_run: int = MI
     length = np.diff(np.append(start, m))
     vector = (length >= min_run) & (offset[start] > 0)
     pieces = -(-length[vector] // max_run)
+    size = np.repeat(-(-length[vector] // pieces), pieces)  # equal pieces: none much shorter
     first_piece = np.repeat(np.cumsum(pieces) - pieces, pieces)
-    piece_start = np.repeat(start[vector], pieces) + (np.arange(pieces.sum()) - first_piece) * max_run
+    piece_start = np.repeat(start[vector], pieces) + (np.arange(pieces.sum()) - first_piece) * size
     after_run = np.concatenate([[True], vector[:-1]])
     plain_start = start[~vector & (after_run | np.isin(start, ranges))]
     bounds = np.concatenate([piece_start, plain_start])
