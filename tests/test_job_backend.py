@@ -43,3 +43,30 @@ def test_work_precision_sweep_on_the_default_backend_runs_compiled(monkeypatch):
         assert (a["n_force"], a["steps"]) == (b["n_force"], b["steps"])
         roundoff = 4 * a["n_force"] * np.finfo(float).eps * extent
         assert abs(a["error"] - b["error"]) <= roundoff
+
+
+def test_scipy_curves_get_the_sweeps_backend(monkeypatch):
+    """scipy's curves of a compiled sweep get mslab's compiled forces; a numpy sweep keeps numpy's."""
+    from mslab.fast.job import rhs_backend
+    from mslab.precision.reference import _flat_rhs, _y0
+
+    monkeypatch.delenv("MSLAB_BACKEND", raising=False)
+    scene = mslab.load_scene("chain")
+    system = scene.system
+    assert rhs_backend(system, ["numba", "numpy"]) == "numba"
+    assert rhs_backend(system, ["numpy"]) == "numpy" and rhs_backend(system, []) == "numpy"
+    assert rhs_backend(system, [], "numba") == "numba" and rhs_backend(system, ["numba"], "numpy") == "numpy"
+    # the compiled right-hand side is the same function: equal to the numpy one to round-off
+    shape = scene.state0.x.shape
+    y = _y0(scene) + 1e-2 * np.random.default_rng(0).normal(size=_y0(scene).shape)
+    fast_f, slow_f = _flat_rhs(system, shape, "numba")(0.0, y), _flat_rhs(system, shape)(0.0, y)
+    assert np.max(np.abs(fast_f - slow_f)) <= 1e-12 * np.max(np.abs(slow_f))
+    dts = [scene.settings.t_end / n for n in (400, 800, 1600, 3200, 6400, 12800)]
+    records = mslab.precision.work_precision(scene, ["rk4"], dts, timing=False, scipy_methods=["DOP853"],
+                                             rtols=[1e-6])
+    scipy = [r for r in records if r["solver"] == "scipy"]
+    assert [r["backend"] for r in scipy] == ["numba"] and scipy[0]["ok"]
+    plain = mslab.precision.scipy_records(scene, methods=["DOP853"], rtols=[1e-6], timing=False)
+    assert [r["backend"] for r in plain] == ["numpy"]
+    # the same solver at the same tolerance: its error is set by the tolerance, not by round-off
+    assert 0.5 <= scipy[0]["error"] / plain[0]["error"] <= 2.0

@@ -47,3 +47,20 @@ def job_backends(system: System, runs: Iterable[tuple[Integrator, int]],
                 if ok)
     compiled = total > LOAD_SECONDS
     return ["numba" if ok and compiled else "numpy" for ok in able]
+
+
+def rhs_backend(system: System, backends: list[str], backend: str | None = None) -> str:
+    """Return the backend of the job's right-hand sides handed to other solvers (scipy's ``solve_ivp``).
+
+    ``"numba"`` (mslab's compiled forces, :meth:`mslab.fast.ForceModel.rhs`) when the job's
+    own runs step compiled (``backends``, from :func:`job_backends`) or ``"numba"`` was asked,
+    and the system's forces compile; else ``"numpy"`` (``System.acceleration``). So the curves
+    of a work-precision diagram compare solvers on the same forces at the same speed.
+    """
+    from mslab.fast.model import kernel_reason
+    from mslab.system import System
+
+    name = check_backend(backend)
+    wanted = name == "numba" or (name == "auto" and "numba" in backends)
+    plain = type(system) is System and not ({"rhs", "acceleration", "force"} & set(vars(system)))
+    return "numba" if wanted and plain and kernel_reason(system) is None else "numpy"

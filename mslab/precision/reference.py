@@ -54,9 +54,25 @@ class Reference:
 _REFERENCES: dict = {}
 
 
-def _flat_rhs(system: System, shape: tuple[int, ...]) -> Callable[[float, np.ndarray], np.ndarray]:
-    """``f(t, y)`` of the first-order system ``y = (x, v)`` for solve_ivp; counts n_force."""
+def _flat_rhs(system: System, shape: tuple[int, ...],
+              backend: str = "numpy") -> Callable[[float, np.ndarray], np.ndarray]:
+    """``f(t, y)`` of the first-order system ``y = (x, v)`` for solve_ivp.
+
+    ``backend="numpy"``: ``System.acceleration`` (counts n_force); ``"numba"``: the same
+    accelerations from mslab's compiled forces (:class:`mslab.fast.ForceModel`, equal to
+    round-off; scipy counts its own ``nfev``).
+    """
     n = int(np.prod(shape))
+    if backend == "numba":
+        from mslab.fast import ForceModel
+
+        model = ForceModel(system)
+
+        def compiled(t: float, y: np.ndarray):
+            a, _ = model.rhs(y[:n].reshape(shape), y[n:].reshape(shape))
+            return np.concatenate([y[n:], a.ravel()])
+
+        return compiled
 
     def f(t: float, y: np.ndarray):
         a = system.acceleration(y[:n].reshape(shape), y[n:].reshape(shape))

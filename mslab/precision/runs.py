@@ -49,11 +49,13 @@ def _mslab_run(scene: Scene, method: str, dt: float, t_end: float, n_save: int,
             "stats": traj.stats.as_dict()}
 
 
-def _scipy_run(scene: Scene, solver: str, rtol: float, t_end: float, atol: float | None) -> dict:
+def _scipy_run(scene: Scene, solver: str, rtol: float, t_end: float, atol: float | None,
+               backend: str = "numpy") -> dict:
     """One solve_ivp run on the scene's forces; saved samples are the solver's own steps.
 
     No ``t_eval`` and no dense output: DOP853's interpolant would cost extra force
-    evaluations and inflate ``nfev``.
+    evaluations and inflate ``nfev``. ``backend``: the right-hand side's
+    (:func:`mslab.precision.reference._flat_rhs`), built before the clock starts.
     """
     from scipy.integrate import solve_ivp
 
@@ -63,8 +65,9 @@ def _scipy_run(scene: Scene, solver: str, rtol: float, t_end: float, atol: float
     kwargs = {}
     if solver in ("Radau", "BDF", "LSODA"):
         kwargs["jac"] = _flat_jacobian(system, shape)
+    rhs = _flat_rhs(system, shape, backend)
     start = time.perf_counter()
-    sol = solve_ivp(_flat_rhs(system, shape), (0.0, t_end), _y0(scene), method=solver, rtol=rtol,
+    sol = solve_ivp(rhs, (0.0, t_end), _y0(scene), method=solver, rtol=rtol,
                     atol=rtol if atol is None else atol, **kwargs)
     wall = time.perf_counter() - start
     steps = max(len(sol.t) - 1, 0)
@@ -137,8 +140,8 @@ def _time_mslab(scene: Scene, method: str, dt: float, t_end: float, repeats: int
 
 
 def _time_scipy(scene: Scene, solver: str, rtol: float, t_end: float, atol: float | None, repeats: int,
-                budget: float, warm_up: bool) -> float:
-    return _time_it(lambda: _scipy_run(scene, solver, rtol, t_end, atol)["stats"]["wall_time"],
+                budget: float, warm_up: bool, backend: str = "numpy") -> float:
+    return _time_it(lambda: _scipy_run(scene, solver, rtol, t_end, atol, backend)["stats"]["wall_time"],
                     repeats, budget, warm_up)
 
 
@@ -148,10 +151,10 @@ def _picklable(scene: Scene) -> Scene:
 
 
 def _call(task: tuple):
-    kind, scene, name, value, t_end, n_save, extra = task  # extra: mslab's backend, scipy's atol
+    kind, scene, name, value, t_end, n_save, extra = task  # extra: mslab's backend, scipy's (atol, backend)
     if kind == "mslab":
         return _mslab_run(scene, name, value, t_end, n_save, extra)
-    return _scipy_run(scene, name, value, t_end, extra)
+    return _scipy_run(scene, name, value, t_end, *extra)
 
 
 def _progress_bar(total: int, progress: Any, desc: str, unit: str = "run"):

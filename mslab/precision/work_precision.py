@@ -5,9 +5,9 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
-from mslab.fast.job import job_backends
+from mslab.fast.job import job_backends, rhs_backend
 from mslab.integrators.base import get_method
-from mslab.precision.reference import reference_solution
+from mslab.precision.reference import Reference, reference_solution
 from mslab.precision.runs import (
     _describe,
     _dts_per_method,
@@ -78,7 +78,9 @@ def work_precision(scene: Scene, methods: Sequence[str | Integrator],
         only), ``error``, ``error_rms``, ``n_force``, ``n_jac``, ``n_solve`` (scipy: LU
         factorisations), ``n_iter``, ``steps``, ``wall_time`` [s], ``ok``, ``failure``,
         ``reference`` ("exact" or "DOP853"); mslab's records also ``backend`` ("numba" or
-        "numpy": the code that stepped the run).
+        "numpy": the code that stepped the run); scipy's records ``backend`` of the right-hand
+        side they were given: mslab's compiled forces when the sweep's own runs step compiled
+        (:func:`mslab.fast.job.rhs_backend`), so every curve has the same forces at the same speed.
     """
     t_end = float(scene.settings.t_end if t_end is None else t_end)
     names = _method_names(methods)
@@ -93,23 +95,31 @@ def work_precision(scene: Scene, methods: Sequence[str | Integrator],
                             [(get_method(m), step_count(t_end, dt) * (1 + (repeats if timing else 0)))
                              for m, dt in runs], backend)
     tasks = [("mslab", light, m, dt, t_end, n_save, b) for (m, dt), b in zip(runs, backends, strict=True)]
-    tasks += [("scipy", light, s, float(r), t_end, n_save, atol) for s in scipy_methods for r in rtols]
+    scipy_backend = rhs_backend(scene.system, backends, backend)  # scipy on the same forces, same speed
+    tasks += [("scipy", light, s, float(r), t_end, n_save, (atol, scipy_backend))
+              for s in scipy_methods for r in rtols]
     n_timed = len(tasks) if timing else 0
     bar, owned = _progress_bar(len(tasks) + n_timed, progress, f"precision {scene.name}")
     try:
-        runs = _run_tasks(tasks, jobs, bar)
-        records = []
-        for task, run in zip(tasks, runs, strict=True):
-            kind, _, name, value, *_ = task
-            if kind == "mslab":
-                records.append({**_record("mslab", name, value, None, run, ref), "backend": task[-1]})
-            else:
-                records.append(_record("scipy", f"scipy:{name}", run["stats"]["dt"], value, run, ref))
+        records = _records(tasks, _run_tasks(tasks, jobs, bar), ref)
         if timing:
             _time_records(scene, tasks, records, t_end, atol, repeats, budget, jobs > 1, bar)
     finally:
         if owned:
             bar.close()
+    return records
+
+
+def _records(tasks: list, runs: list[dict], ref: Reference) -> list[dict]:
+    """One record per task and its run, with the backend it ran on (scipy: its right-hand side's)."""
+    records = []
+    for task, run in zip(tasks, runs, strict=True):
+        kind, _, name, value, *_ = task
+        if kind == "mslab":
+            records.append({**_record("mslab", name, value, None, run, ref), "backend": task[-1]})
+        else:
+            records.append({**_record("scipy", f"scipy:{name}", run["stats"]["dt"], value, run, ref),
+                            "backend": task[-1][1]})
     return records
 
 
@@ -126,7 +136,8 @@ def _time_records(scene: Scene, tasks: list, records: list[dict], t_end: float, 
             if kind == "mslab":
                 rec["wall_time"] = _time_mslab(scene, name, value, t_end, repeats, budget, warm_up, task[-1])
             else:
-                rec["wall_time"] = _time_scipy(scene, name, value, t_end, atol, repeats, budget, warm_up)
+                rec["wall_time"] = _time_scipy(scene, name, value, t_end, atol, repeats, budget, warm_up,
+                                               task[-1][1])
         if bar is not None:
             bar.update(1)
 
