@@ -90,8 +90,8 @@ def batches(i: np.ndarray, j: np.ndarray, n_particles: int, **sizes: int) -> tup
     return order, ranges, phases
 
 
-
-#: shortest run worth its own vectorised loop (a shorter one costs its set-up)
+#: shortest run worth its own vectorised loop (its set-up costs): measured on cloths, rows of
+#: 39 springs took 0.94 of the plain loop's time, rows of 49 0.60 (AVX-512, 2026-11-26)
 MIN_RUN = 48
 #: longest run in one go: its forces (3 x 8 bytes per spring) stay in the first-level cache
 MAX_RUN = 1024
@@ -108,9 +108,10 @@ def segments(i: np.ndarray, j: np.ndarray, ranges: np.ndarray, min_run: int = MI
     plain segment, summed spring by spring (:func:`~mslab.effects.spring_kernels.spring_range`).
     Segment ``s`` is springs ``bounds[s]:bounds[s+1]``, a run if ``run[s]``; batch ``r`` is
     segments ``batch_segments[r]:batch_segments[r+1]``. Runs shorter than ``min_run`` are
-    plain; longer than ``max_run`` are cut in pieces of equal length. The springs keep their order, and so
-    does every particle's sum (``spring_run`` adds the ``j`` ends first: ``b > a``), so the
-    forces are bitwise those of one loop over the batch. Cost ``O(n_springs)``, once per scene.
+    plain; longer than ``max_run`` are cut in pieces of equal length. The springs keep their
+    order, and so does every particle's sum (``spring_run`` adds the ``j`` ends first:
+    ``b > a``), so the forces are bitwise those of one loop over the batch. Cost
+    ``O(n_springs)``, once per scene.
     """
     i = np.asarray(i, dtype=np.int64)
     j = np.asarray(j, dtype=np.int64)

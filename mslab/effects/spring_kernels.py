@@ -2,7 +2,8 @@
 
 The numpy methods of :class:`mslab.effects.springs.Springs` are the reference; the
 functions here are the same equations as plain loops: :func:`spring_kernel` (forces and
-dissipated power, composed into the stepping loops by :mod:`mslab.fast`) and
+dissipated power, composed into the stepping loops by :mod:`mslab.fast`; one statement of a
+spring's force, :func:`pair_scale`, spring by spring or vectorised over runs) and
 :func:`spring_jacobian_kernel` with :func:`scatter_pair_blocks` (the Jacobians of the
 compiled Newton path, :mod:`mslab.fast.newton`). ``tests/test_fast.py`` and
 ``tests/test_newton_matrix.py`` hold them equal to the numpy code.
@@ -62,12 +63,13 @@ def spring_batch(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: 
     :func:`spring_range` over the whole batch, bitwise the same forces (the power differs by
     round-off: a run sums it in lanes).
     """
-    longest = 0
-    for s in range(first, last):
-        longest = max(longest, np.int64(bounds[s + 1]) - np.int64(bounds[s]))
     runs = x.shape[1] == 3
-    pair = np.empty(3 * longest if runs else 0)  # a run's pair forces
-    rates = np.empty(longest if runs and damped else 0)  # a run's dissipated powers
+    longest = 0  # the longest run (at most about MAX_RUN springs): the buffers' size
+    for s in range(first, last):
+        if runs and run[s]:
+            longest = max(longest, np.int64(bounds[s + 1]) - np.int64(bounds[s]))
+    pair = np.empty(3 * longest)  # a run's pair forces
+    rates = np.empty(longest if damped else 0)  # a run's dissipated powers
     power = 0.0
     for s in range(first, last):
         start = bounds[s]
