@@ -98,6 +98,11 @@ class Simulation:
         self.save_every = int(save_every)
         if self.save_every < 1:
             raise ValueError(f"save_every must be >= 1, got {self.save_every}")
+        state0 = scene.state0
+        for what, values in (("positions", state0.x), ("velocities", state0.v)):
+            if not np.all(np.isfinite(values)):  # before any work: a run from NaN "blows up" at step 1
+                raise ValueError(f"initial state: {what} are not finite (NaN or inf) at particles "
+                                 f"{np.flatnonzero(~np.all(np.isfinite(values), axis=-1))[:5].tolist()}")
         self.blowup = blowup
         self.stable_dt = stable_dt
         if check_stability and self.integrator.explicit:

@@ -189,3 +189,37 @@ def test_saturating_instability_ends_in_instability_error(make, method, steps):
     err = info.value
     assert "saturated" in str(err) and err.step < steps
     assert not err.trajectory.complete and err.trajectory.t[-1] < err.t
+
+
+@pytest.mark.parametrize("field", ["x", "v"])
+def test_a_non_finite_initial_state_is_refused_before_any_work(field):
+    """A scene built around the SceneBuilder with NaN in its state: one clear error, no step taken."""
+    scene = mslab.load_scene("chain")
+    values = getattr(scene.state0, field).copy()
+    values[3, 1] = np.nan
+    state = dataclasses.replace(scene.state0, **{field: values})
+    bad = dataclasses.replace(scene, state0=state)
+    what = "positions" if field == "x" else "velocities"
+    with pytest.raises(ValueError, match=rf"initial state: {what} are not finite .* particles \[3\]"):
+        mslab.Simulation(bad, "rk4", 1e-3)
+    with pytest.raises(ValueError, match="initial state"):
+        mslab.simulate(bad, "rk4", 1e-3, t_end=0.01)
+
+
+def test_springs_take_one_value_for_all_or_one_per_spring():
+    """A single stiffness is every spring's, on both backends alike; a wrong count is one clear error."""
+    from mslab import fast
+    from mslab.effects import Springs
+
+    pairs = np.array([[0, 1], [1, 2]])
+    x = np.array([[0.0, 0.0, 0.0], [1.1, 0.0, 0.0], [2.3, 0.0, 0.0]])
+    one = Springs(pairs, 500.0, 1.0, 0.0, 3)
+    each = Springs(pairs, [500.0, 500.0], [1.0, 1.0], [0.0, 0.0], 3)
+    for springs in (one, each):
+        system = mslab.System(np.ones(3), np.zeros(3, dtype=bool), [springs], 3)
+        f_numpy = system.force(x, np.zeros_like(x))
+        assert np.allclose(f_numpy[:, 0], [500 * 0.1, 500 * 0.2 - 500 * 0.1, -500 * 0.2])
+        f_compiled = fast.ForceModel(system).force(x, np.zeros_like(x))[0]
+        assert np.max(np.abs(f_compiled - f_numpy)) <= 8 * np.finfo(float).eps * 500 * 2.3  # k |d|
+    with pytest.raises(ValueError, match=r"stiffness needs one value or one per spring \(2\)"):
+        Springs(pairs, [1.0, 2.0, 3.0], 1.0, 0.0, 3)

@@ -58,7 +58,7 @@ def test_batches_are_a_conflict_free_partition(n, m, span, seed):
 
 def test_a_cloth_needs_no_serial_springs():
     """Row-numbered cloth: every spring lies in adjacent blocks, so the serial last phase is empty."""
-    scene = generators.cloth(165, 165)
+    scene = generators.cloth(170, 170)
     springs = next(e for e in scene.system.effects if isinstance(e, Springs))
     order, ranges, phases = batches(springs.i, springs.j, scene.system.n_particles)
     blocks = block_count(scene.system.n_particles, len(springs.i))
@@ -68,8 +68,8 @@ def test_a_cloth_needs_no_serial_springs():
 
 
 def cloth_state(dim: int, damped: bool, seed: int = 0):
-    """A 165 x 165 cloth's springs (damped or not; in 2D without gravity), moved at random."""
-    scene = generators.cloth(165, 165)
+    """A 170 x 170 cloth's springs (damped or not; in 2D without gravity), moved at random."""
+    scene = generators.cloth(170, 170)
     system = scene.system
     springs = next(e for e in system.effects if isinstance(e, Springs))
     new = Springs(springs.springs, springs.stiffness, springs.rest_length,
@@ -122,7 +122,7 @@ def test_forces_bitwise_equal_on_one_and_two_threads(dim, damped):
 @pytest.mark.parametrize("method", ["symplectic_euler", "rk4", "verlet"])
 def test_runs_bitwise_equal_for_any_thread_count(method):
     """A damped cloth stepped on 1 and 2 threads: the same positions, velocities and ledger, bit for bit."""
-    scene = generators.cloth(165, 165)
+    scene = generators.cloth(170, 170)
     scene = dataclasses.replace(scene, settings=dataclasses.replace(scene.settings, dt=1e-4))
     a, b = (mslab.simulate(scene, method, t_end=0.002, save_every=5, backend="numba", threads=n)
             for n in (1, 2))
@@ -170,3 +170,16 @@ def test_openmp_threads_sleep_unless_the_user_chose(preset, expected):
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == expected
+
+
+def test_springs_of_the_plain_loop_count_double_toward_threads():
+    """The same 100k springs: in rows (all runs, half the time each) one batch; shuffled, batches."""
+    scene = generators.cloth(130, 130)
+    springs = next(e for e in scene.system.effects if isinstance(e, Springs))
+    m = len(springs.i)
+    assert MIN_SPRINGS_PARALLEL <= m < 2 * MIN_SPRINGS_PARALLEL
+    order, ranges, phases = batches(springs.i, springs.j, scene.system.n_particles)
+    assert ranges.tolist() == [0, m]  # every spring in a run: work m / 2, below the threshold
+    shuffled = np.random.default_rng(0).permutation(m)
+    _, ranges, _ = batches(springs.i[shuffled], springs.j[shuffled], scene.system.n_particles)
+    assert len(ranges) - 2 == block_count(scene.system.n_particles, m) > 1  # blocks, then the far springs

@@ -14,7 +14,8 @@ the odd batches another. Springs whose ends lie further apart (a block narrower 
 spring, a mesh numbered at random) form a last phase of one batch, run on one thread.
 Within a batch the springs keep their order in the scene.
 
-Determinism: ``B`` depends on the numbers of particles and springs only, never on the
+Determinism: ``B`` depends on the scene alone (the numbers of particles and springs, and how
+many springs lie in runs), never on the
 number of threads or the machine; each particle then receives its springs' forces in the
 same order whichever thread computes them, so positions are bitwise the same on 1 or 64
 threads. (They differ in round-off from a loop over the springs in scene order: another
@@ -34,27 +35,29 @@ import numpy as np
 #: springs per batch: a batch must outweigh the start of a parallel loop by far (2048
 #: springs take about 15 us)
 MIN_SPRINGS_PER_BATCH = 2048
-#: fewer springs stay in one batch (no parallel loop): waking the sleeping threads costs about
-#: 40 us per parallel loop, two per force evaluation, which a step of fewer springs does not
-#: repay. Measured on 2 cores with the vectorised runs (step time on two threads / one, 41
-#: interleaved frames): 128 x 128 cloth (97k springs) 1.08, 150 x 150 (134k) 1.05, 180 x 180
-#: (193k) 0.86, 220 x 220 (288k) 0.85, 300 x 300 (537k) 0.75 (benchmarks/RESULTS.md, "Runs";
-#: before the runs, at twice the time per spring, the threshold was 65,536)
-MIN_SPRINGS_PARALLEL = 160_000
+#: less work stays in one batch (no parallel loop): waking the sleeping threads costs about
+#: 40 us per parallel loop, two per force evaluation, which a smaller step does not repay. The
+#: work is counted in springs of the plain loop; a spring in a run (:func:`segments`) counts
+#: half, as it takes about half the time. Measured on 2 cores, step time on two threads / one
+#: (41 interleaved frames): cloths, all springs in runs, 128 x 128 (97k springs) 1.08, 150 x 150
+#: (134k) 1.05, 180 x 180 (193k) 0.86, 300 x 300 (537k) 0.75; before the runs (plain loop)
+#: 64 x 64 (24k) 1.4, 128 x 128 0.92 (benchmarks/RESULTS.md, "Runs" and "Threads")
+MIN_SPRINGS_PARALLEL = 80_000
 #: most blocks of particles; 32 keep two phases of 16 batches busy on up to 16 threads
 MAX_BLOCKS = 32
 
 
 def block_count(n_particles: int, n_springs: int, min_parallel: int = MIN_SPRINGS_PARALLEL,
-                per_batch: int = MIN_SPRINGS_PER_BATCH) -> int:
+                per_batch: int = MIN_SPRINGS_PER_BATCH, work: float | None = None) -> int:
     """Return the number of particle blocks ``B`` (1: one batch, no parallel loop).
 
-    One below ``min_parallel`` springs (:data:`MIN_SPRINGS_PARALLEL`); else at least
+    One when the ``work`` (default ``n_springs``; :func:`batches` counts a spring in a run as
+    half) is below ``min_parallel`` (:data:`MIN_SPRINGS_PARALLEL`); else at least
     ``per_batch`` springs per batch (:data:`MIN_SPRINGS_PER_BATCH`), at most
     :data:`MAX_BLOCKS` blocks, at least 4 particles per block; from the sizes alone (never the
     thread count).
     """
-    if n_springs < min_parallel:
+    if (n_springs if work is None else work) < min_parallel:
         return 1
     blocks = min(MAX_BLOCKS, n_springs // per_batch, n_particles // 4)
     return max(1, int(blocks))
@@ -72,7 +75,9 @@ def batches(i: np.ndarray, j: np.ndarray, n_particles: int, **sizes: int) -> tup
     i = np.asarray(i, dtype=np.int64)
     j = np.asarray(j, dtype=np.int64)
     m = i.size
-    blocks = block_count(n_particles, m, **sizes)
+    bounds, run, _ = segments(i, j, np.array([0, m]))
+    in_runs = int(np.sum(np.diff(bounds)[run == 1]))  # springs in runs, in the scene's order
+    blocks = block_count(n_particles, m, work=m - in_runs / 2, **sizes)
     if blocks == 1:
         return np.arange(m), np.array([0, m], dtype=np.int64), np.array([0, 1], dtype=np.int64)
     bi = i * blocks // n_particles

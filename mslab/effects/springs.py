@@ -39,6 +39,14 @@ _NUMBERS = (int, float, np.integer, np.floating)
 _BOOLS = (bool, np.bool_)
 
 
+def _per_spring(value: npt.ArrayLike, name: str, m: int) -> np.ndarray:
+    """One float per spring: an array of ``m`` values, or one value for every spring."""
+    array = np.asarray(value, dtype=float)
+    if array.ndim > 1 or array.size not in (1, m):
+        raise ValueError(f"Springs: {name} needs one value or one per spring ({m}), got shape {array.shape}")
+    return np.array(np.broadcast_to(array.reshape(-1)[:m] if array.ndim else array, (m,)))  # own, writable
+
+
 def _index(value: object, n: int) -> bool:
     """``value`` is a particle index in ``0..n-1`` (as the schema's ``index`` accepts)."""
     return isinstance(value, _INTEGERS) and not isinstance(value, _BOOLS) and 0 <= value < n
@@ -110,9 +118,9 @@ class Springs(Effect):
         self.springs = np.asarray(springs, dtype=np.int64).reshape(-1, 2)
         self.i = np.ascontiguousarray(self.springs[:, 0])
         self.j = np.ascontiguousarray(self.springs[:, 1])
-        self.stiffness = np.ascontiguousarray(stiffness, dtype=float)
-        self.rest_length = np.ascontiguousarray(rest_length, dtype=float)
-        self.damping = np.ascontiguousarray(damping, dtype=float)
+        self.stiffness, self.rest_length, self.damping = (
+            _per_spring(value, name, self.i.size)
+            for value, name in ((stiffness, "stiffness"), (rest_length, "rest_length"), (damping, "damping")))
         self.kind = np.array(["structural"] * len(self.i) if kind is None else kind, dtype=str)
         self.n = int(n_particles)
         self._batched: tuple | None = None  # kernel_params, on first use
