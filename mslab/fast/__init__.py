@@ -54,13 +54,18 @@ def check_backend(name: str | None) -> str:
     return name
 
 
-def unsupported(system: System, integrator: Integrator) -> str | None:
-    """Why the compiled stepping loop cannot run this system and method (None: it can)."""
+def forces_reason(system: System) -> str | None:
+    """Why the compiled forces cannot stand in for this system's (None: they can)."""
     from mslab.system import System
 
     if type(system) is not System or {"rhs", "acceleration", "force"} & set(vars(system)):
         return "the system is not a plain mslab.System"
-    reason = kernel_reason(system)
+    return kernel_reason(system)
+
+
+def unsupported(system: System, integrator: Integrator) -> str | None:
+    """Why the compiled stepping loop cannot run this system and method (None: it can)."""
+    reason = forces_reason(system)
     if reason is not None:
         return reason
     if integrator.compiled is None or "step" in vars(integrator):

@@ -16,7 +16,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 from typing import TYPE_CHECKING
 
-from mslab.fast import LOAD_SECONDS, check_backend, numpy_seconds, unsupported
+from mslab.fast import LOAD_SECONDS, check_backend, forces_reason, numpy_seconds, unsupported
 
 if TYPE_CHECKING:
     from mslab.integrators.base import Integrator
@@ -57,10 +57,6 @@ def rhs_backend(system: System, backends: list[str], backend: str | None = None)
     and the system's forces compile; else ``"numpy"`` (``System.acceleration``). So the curves
     of a work-precision diagram compare solvers on the same forces at the same speed.
     """
-    from mslab.fast.model import kernel_reason
-    from mslab.system import System
-
     name = check_backend(backend)
     wanted = name == "numba" or (name == "auto" and "numba" in backends)
-    plain = type(system) is System and not ({"rhs", "acceleration", "force"} & set(vars(system)))
-    return "numba" if wanted and plain and kernel_reason(system) is None else "numpy"
+    return "numba" if wanted and forces_reason(system) is None else "numpy"
