@@ -74,7 +74,8 @@ import numpy as np
 
 from mslab.integrators.base import Integrator
 from mslab.integrators.families.local_step import local_rhs, update
-from mslab.integrators.newton.linear import Factor
+from mslab.integrators.newton.linear import DENSE_MAX, Factor
+from mslab.integrators.newton.tree_solve import tree_factor
 from mslab.state import State
 
 if TYPE_CHECKING:
@@ -129,7 +130,12 @@ class GlobalStep:
         self.rho: float | None = None  # the spectral radius estimate (Chebyshev), on first use
         self.lap_fp = lap[self.free][:, self.pinned]
         Q = sp.diags(system.mass[self.free] + dt * self.gamma) + (dt * dt) * lap[self.free][:, self.free]
-        self.factor = Factor(Q.tocsc(), system.counters)
+        Q = Q.tocsc()
+        # ten solves per frame with this one matrix: its factors kept for solves on every core
+        # (mslab.integrators.newton.tree_solve); small matrices and no cvxopt: Factor
+        self.factor = tree_factor(Q, system.counters) if Q.shape[0] > DENSE_MAX else None
+        if self.factor is None:
+            self.factor = Factor(Q, system.counters)
 
     def other_forces(self, x: np.ndarray, xn: np.ndarray, dt: float) -> np.ndarray:
         """Return the other forces (all but springs and drag) at the iterate ``(x, (x - x_n)/h)``."""
