@@ -11,14 +11,15 @@ interleaved, medians):
    ``fast_mass_spring`` against :class:`PlainFastMassSpring`, a plain numba + CHOLMOD
    local/global written here (numba local step, numpy right-hand side, one CHOLMOD solve of
    the three coordinates per iteration), both stepping from the same states; the time of one
-   CHOLMOD solve alone and the solves' share of each code's frame (timed inside frames: the
-   floor of a frame); the setup (matrix, factorisation, Chebyshev's spectral radius) of both,
+   CHOLMOD solve alone and the solves' share of the reference's frame (timed inside frames);
+   mslab on one thread too; the setup (matrix, factorisation, Chebyshev's spectral radius) of both,
    timed on its own and not charged to the frame, with mslab's counters;
 2. distance from implicit Euler's step against time: ``max|x - x_IE| / max|x_IE - x_n|`` for
    5 to 40 plain and Chebyshev-accelerated (Wang 2015; mslab's one-sided default and Wang's
    own form) iterations from the same state, with each variant's frame time.
 
-Times are CPU times of this process (BLAS single-threaded; see :func:`timed`).
+Frames are timed by the wall clock (mslab's iterations run on every core; the CPU times of
+the steady frame are recorded too), setup by CPU time (:func:`timed`). BLAS single-threaded.
 
 Nothing here is a test.
 """
@@ -106,10 +107,10 @@ class PlainFastMassSpring:
 
 # -- measurements ------------------------------------------------------------------------------------
 def timed(f, *args, **kw):
-    """Return the CPU time of ``f(*args)`` (this process: BLAS single-threaded) and its result.
+    """Return the CPU time of ``f(*args)`` (this process, all its threads) and its result.
 
-    CPU time, not wall time: on this shared, busy machine a frame of 0.1 s is preempted
-    several times (the wall time of the same frame varied 2x); the wall time is recorded too.
+    For the single-threaded parts (setup, the distance rows); the steady frame is timed by
+    the wall clock (mslab's iterations run on every core).
     """
     t = time.process_time()
     out = f(*args, **kw)
@@ -149,6 +150,14 @@ def setup_times(n: int, dt: float) -> dict:
 
 
 def steady_frame(n: int, repeats: int, dt: float = 1 / 30) -> dict:
+    """mslab's frame (default threads, and on one thread) against the reference's, interleaved.
+
+    Wall times (mslab's iterations run on every core: CPU time would add the threads' times;
+    it is recorded too). Each repeat times the three frames from the same state in an
+    order that rotates; ratios are per repeat, then the median.
+    """
+    from mslab.jit import threads
+
     scene = scaled_cloth(n)
     s = scene.system
     fms = mslab.get_method("fast_mass_spring")
@@ -157,79 +166,82 @@ def steady_frame(n: int, repeats: int, dt: float = 1 / 30) -> dict:
     for _ in range(3):  # compile, factor: setup, not timed here
         state = fms.step(s, state, dt)
         ref.step(state)
+        with threads(1):
+            fms.step(s, state, dt)
     g = global_step(s, dt)
     b = np.asfortranarray(np.random.default_rng(0).standard_normal((int(g.free.sum()), 3)))
-    t_ms, t_ref, t_solve, diff, w_ms, w_ref = [], [], [], [], [], []
+    B = ref.cvxopt.matrix(b)
+
+    def one_thread(*args):
+        with threads(1):
+            return fms.step(*args)
+
+    runs = {"mslab": lambda st: fms.step(s, st, dt), "mslab_one_thread": lambda st: one_thread(s, st, dt),
+            "reference": ref.step}
+    wall = {k: [] for k in runs}
+    cpu = {k: [] for k in runs}
+    t_solve, t_ref_solve, diff = [], [], []
     before = s.counters.snapshot()
-    for r in range(repeats):  # interleaved, order alternating
-        if r % 2:
-            tm, wm, new = timed_wall(fms.step, s, state, dt)
-            tr, wr, other = timed_wall(ref.step, state)
-        else:
-            tr, wr, other = timed_wall(ref.step, state)
-            tm, wm, new = timed_wall(fms.step, s, state, dt)
-        t_solve.append(min(timed(g.factor.solve, b)[0] for _ in range(3)))
-        t_ms.append(tm)
-        t_ref.append(tr)
-        w_ms.append(wm)
-        w_ref.append(wr)
-        diff.append(float(np.abs(new.x - other.x).max()))
-        state = new
+    names = list(runs)
+    for r in range(repeats):
+        out = {}
+        for k in names[r % 3:] + names[:r % 3]:  # the order rotates
+            c, w, out[k] = timed_wall(runs[k], state)
+            cpu[k].append(c)
+            wall[k].append(w)
+        t_solve.append(min(timed_wall(g.factor.solve, b)[1] for _ in range(3)))
+        t_ref_solve.append(min(timed_wall(ref.cvxopt.cholmod.solve, ref.F, ref.cvxopt.matrix(B))[1]
+                               for _ in range(3)))
+        diff.append(float(np.abs(out["mslab"].x - out["reference"].x).max()))
+        assert np.array_equal(out["mslab"].x, out["mslab_one_thread"].x)  # any thread count: same bits
+        state = out["mslab"]
     work = s.counters.since(before)
-    share_ms, share_ref = solve_shares(fms, ref, g, s, state, dt, max(3, repeats // 4))
-    return {"n": n, "repeats": repeats, "mslab_frame_ms": 1e3 * float(np.median(t_ms)),
-            "reference_frame_ms": 1e3 * float(np.median(t_ref)),
-            "ratio_mslab_over_reference": float(np.median(np.array(t_ms) / np.array(t_ref))),
-            "ratio_min_max": [float(np.min(np.array(t_ms) / np.array(t_ref))),
-                              float(np.max(np.array(t_ms) / np.array(t_ref)))],
-            "wall_ratio_mslab_over_reference": float(np.median(np.array(w_ms) / np.array(w_ref))),
-            "wall_frame_ms_mslab_reference": [1e3 * float(np.median(w_ms)), 1e3 * float(np.median(w_ref))],
-            "solve_ms": 1e3 * float(np.median(t_solve)),  # median over repeats of the min of 3
-            "ten_solves_share_of_reference_frame": float(np.median(10 * np.array(t_solve) / np.array(t_ref))),
-            "in_frame_solve_share_mslab_reference": [share_ms, share_ref],
+    w = {k: np.array(v) for k, v in wall.items()}
+    c = {k: np.array(v) for k, v in cpu.items()}
+    return {"n": n, "repeats": repeats, "threads": g.factor.bins if hasattr(g.factor, "bins") else 1,
+            "solver": type(g.factor).__name__, "compiled_loop": g.loop is not None,
+            "wall_frame_ms": {k: 1e3 * float(np.median(v)) for k, v in w.items()},
+            "wall_ratio_mslab_over_reference": float(np.median(w["mslab"] / w["reference"])),
+            "wall_ratio_min_max": [float(np.min(w["mslab"] / w["reference"])),
+                                   float(np.max(w["mslab"] / w["reference"]))],
+            "wall_ratio_one_thread_over_reference": float(np.median(w["mslab_one_thread"] / w["reference"])),
+            "cpu_frame_ms": {k: 1e3 * float(np.median(v)) for k, v in c.items()},
+            "cpu_ratio_mslab_over_reference": float(np.median(c["mslab"] / c["reference"])),
+            "solve_ms_mslab_reference": [1e3 * float(np.median(t_solve)),
+                                         1e3 * float(np.median(t_ref_solve))],
+            "ten_solves_share_of_reference_frame": float(np.median(10 * np.array(t_ref_solve)
+                                                                   / w["reference"])),
+            "in_frame_solve_share_reference": solve_share(ref, state, max(3, repeats // 4)),
             "max_position_difference": max(diff),
-            "counters_per_frame": {k: v / repeats for k, v in work.items()}}
+            "counters_per_frame": {k: v / (2 * repeats) for k, v in work.items()}}
 
 
-def solve_shares(fms, ref, g, s, state, dt, repeats: int) -> tuple[float, float]:
-    """Share of the CHOLMOD solves in each frame (CPU time), timed inside extra frames.
+def solve_share(ref, state, repeats: int) -> float:
+    """Share of the CHOLMOD solves in the reference's frame (CPU time), timed inside extra frames.
 
     In a frame the solves find the factor partly evicted by the local step: they cost more
-    than solves repeated back to back. mslab's solves are timed around ``Factor.solve``, the
-    reference's around ``cvxopt.cholmod.solve``; medians over ``repeats`` frames.
+    than solves repeated back to back. Timed around ``cvxopt.cholmod.solve``; the median over
+    ``repeats`` frames. (mslab's solves run inside its compiled loop: not timed apart.)
     """
-    factor_solve, cholmod_solve = g.factor.solve, ref.cvxopt.cholmod.solve
+    cholmod_solve = ref.cvxopt.cholmod.solve
     spent = [0.0]
 
-    def counting(f):
-        def wrapped(*args):
-            t = time.process_time()
-            out = f(*args)
-            spent[0] += time.process_time() - t
-            return out
-        return wrapped
+    def counting(*args):
+        t = time.process_time()
+        out = cholmod_solve(*args)
+        spent[0] += time.process_time() - t
+        return out
 
-    def mslab_frame():
-        g.factor.solve = counting(factor_solve)
+    shares = []
+    for _ in range(repeats):
+        spent[0] = 0.0
+        ref.cvxopt.cholmod.solve = counting
         try:
-            return fms.step(s, state, dt)
-        finally:
-            del g.factor.solve
-
-    def reference_frame():  # (mslab's solves also end in cvxopt.cholmod.solve: patched apart)
-        ref.cvxopt.cholmod.solve = counting(cholmod_solve)
-        try:
-            return ref.step(state)
+            t, _ = timed(ref.step, state)
         finally:
             ref.cvxopt.cholmod.solve = cholmod_solve
-
-    shares = [[], []]
-    for _ in range(repeats):
-        for k, run in enumerate((mslab_frame, reference_frame)):
-            spent[0] = 0.0
-            t, _ = timed(run)
-            shares[k].append(spent[0] / t)
-    return float(np.median(shares[0])), float(np.median(shares[1]))
+        shares.append(spent[0] / t)
+    return float(np.median(shares))
 
 
 def distance_vs_time(n: int, repeats: int, dt: float = 1 / 30, frames: int = 5) -> dict:
@@ -249,7 +261,7 @@ def distance_vs_time(n: int, repeats: int, dt: float = 1 / 30, frames: int = 5) 
     times = {name: [] for name in variants}
     for _ in range(repeats):  # interleaved
         for name, m in variants.items():
-            times[name].append(timed(m.step, s, state, dt)[0])
+            times[name].append(timed_wall(m.step, s, state, dt)[1])
     rows = [{"variant": name, "frame_ms": 1e3 * float(np.median(times[name])),
              "relative_distance": float(np.abs(m.step(s, state, dt).x - exact.x).max() / move)}
             for name, m in variants.items()]

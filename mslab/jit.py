@@ -71,8 +71,9 @@ def prange(*args: int) -> range:
 def _resolved(function: Callable, options: dict, helpers: bool) -> tuple[Callable, dict]:
     """Return ``function`` with the globals numba must see compiled, and its options.
 
-    A plain function of the same module that ``function`` calls (a helper of a kernel, e.g.
-    ``spring_range`` of ``spring_kernel``) becomes its :func:`compiled` twin, and
+    A plain function of mslab that ``function`` calls (a helper of a kernel, e.g.
+    ``spring_range`` of ``spring_kernel``, or one imported from another kernel module)
+    becomes its :func:`compiled` twin, and
     :func:`prange` becomes numba's (``parallel=True`` is then added to the options), in a
     copy of the function whose globals differ only there: the module itself is unchanged.
     ``helpers=False`` leaves the helpers alone (a generated module whose functions are all
@@ -87,7 +88,7 @@ def _resolved(function: Callable, options: dict, helpers: bool) -> tuple[Callabl
             swaps[name] = numba().prange
             options = {**options, "parallel": True}
         elif (helpers and inspect.isfunction(value) and value is not function
-              and value.__module__ == function.__module__):
+              and value.__module__.split(".")[0] == "mslab"):
             helper_options = {k: v for k, v in options.items() if k != "parallel"}
             what = f"{value.__name__}, a helper of {function.__name__}"
             swaps[name] = compiled(value, what, **helper_options)
@@ -110,7 +111,7 @@ def compiled(function: Callable, what: str | None = None, *, helpers: bool = Tru
     what : str, optional
         What it is, for the announcement ("the springs' Jacobian loop"); default its name.
     helpers : bool
-        Compile the plain functions of its module that it calls along with it (default);
+        Compile the plain functions of mslab that it calls along with it (default);
         a loop over :func:`prange` always becomes numba's parallel loop (:func:`_resolved`).
     **options
         Further ``njit`` options (``error_model="numpy"``).

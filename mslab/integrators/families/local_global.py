@@ -73,9 +73,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from mslab.integrators.base import Integrator
+from mslab.integrators.families.local_global_loop import TreeIterations
 from mslab.integrators.families.local_step import local_rhs, update
 from mslab.integrators.newton.linear import DENSE_MAX, Factor
-from mslab.integrators.newton.tree_solve import tree_factor
+from mslab.integrators.newton.tree_solve import TreeSolve, tree_factor
 from mslab.state import State
 
 if TYPE_CHECKING:
@@ -128,6 +129,7 @@ class GlobalStep:
         self.i_u, self.j_u = self.i.astype(np.uint32), self.j.astype(np.uint32)
         self.pinned = system.pinned.copy()
         self.rho: float | None = None  # the spectral radius estimate (Chebyshev), on first use
+        self.loop: TreeIterations | None = None  # the compiled iterations (tree_iterations), on first use
         self.lap_fp = lap[self.free][:, self.pinned]
         Q = sp.diags(system.mass[self.free] + dt * self.gamma) + (dt * dt) * lap[self.free][:, self.free]
         Q = Q.tocsc()
@@ -196,6 +198,19 @@ def chebyshev_weights(rho: float, iterations: int, delay: int) -> np.ndarray:
     for k in range(delay, iterations):
         omega[k] = 2.0 / (2.0 - rho * rho) if k == delay else 4.0 / (4.0 - rho * rho * omega[k - 1])
     return omega
+
+
+def tree_iterations(g: GlobalStep, system: System) -> TreeIterations | None:
+    """Return the compiled loop of :mod:`~mslab.integrators.families.local_global_loop` for ``g``, or None.
+
+    Only when the factors are split by the elimination tree (:class:`TreeSolve`), the scene is
+    3D and the forces besides springs and drag are constant; built once per global step.
+    """
+    if not isinstance(g.factor, TreeSolve) or system.dim != 3 or g.varying or g.damped_springs:
+        return None
+    if g.loop is None:
+        g.loop = TreeIterations(g, g.factor, system.n_particles)
+    return g.loop
 
 
 def global_step(system: System, dt: float) -> GlobalStep:
@@ -345,6 +360,13 @@ class LocalGlobal(Integrator):
         x = y.copy()
         prev = y.copy()  # the iterate before the last (Chebyshev)
         scale = 1.0 + float(np.max(np.abs(xn))) if xn.size else 1.0
+        loop = tree_iterations(g, system)
+        if loop is not None:  # one compiled loop, one parallel launch per iteration: same iterates
+            tol = -1.0 if self.tol is None else self.tol * scale
+            done = loop.run(g, x, prev, base, dt * dt, omega, relax, self.chebyshev, tol)
+            c.n_force += done
+            c.n_solve += done
+            return self._finish(system, state, x, done, dt)
         jd = np.empty_like(x)
         rhs = np.empty(base.shape, order="F")  # the solvers read columns
         done = 0
@@ -359,8 +381,13 @@ class LocalGlobal(Integrator):
                 break
             if self.tol is not None and change <= self.tol * scale:
                 break
-        c.n_iter += done
-        v = (x - xn) / dt
-        v[g.pinned] = vn[g.pinned]
+        return self._finish(system, state, x, done, dt)
+
+    @staticmethod
+    def _finish(system: System, state: State, x: np.ndarray, done: int, dt: float) -> State:
+        """Return the step's state from the last iterate ``x`` (``done`` iterations counted)."""
+        system.counters.n_iter += done
+        v = (x - state.x) / dt
+        v[system.pinned] = state.v[system.pinned]
         work = dt * system.dissipated_power(x, v) if system.dissipative else 0.0
         return State(x, v, (), state.dissipated + work)

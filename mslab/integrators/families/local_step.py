@@ -43,6 +43,19 @@ def projections_py(x: np.ndarray, i: np.ndarray, j: np.ndarray, stiffness: np.nd
                 out[b, c] -= p
 
 
+def projection3(x: np.ndarray, a: int, b: int, stiffness: float, rest_length: float
+                ) -> tuple[bool, float, float, float]:
+    """Return ``(length > 0, k d)`` of the spring ``(a, b)`` in 3D: ``k L (x_a - x_b) / |x_a - x_b|``."""
+    d0 = x[a, 0] - x[b, 0]
+    d1 = x[a, 1] - x[b, 1]
+    d2 = x[a, 2] - x[b, 2]
+    length = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    if length > 0.0:
+        scale = stiffness * rest_length / length
+        return True, scale * d0, scale * d1, scale * d2
+    return False, 0.0, 0.0, 0.0
+
+
 def local_rhs_py(x: np.ndarray, i: np.ndarray, j: np.ndarray, stiffness: np.ndarray,
                  rest_length: np.ndarray, extra: np.ndarray, base: np.ndarray, h2: float,
                  free_idx: np.ndarray, jd: np.ndarray, rhs: np.ndarray) -> None:
@@ -59,18 +72,14 @@ def local_rhs_py(x: np.ndarray, i: np.ndarray, j: np.ndarray, stiffness: np.ndar
         for q in range(i.shape[0]):
             a = i[q]
             b = j[q]
-            d0 = x[a, 0] - x[b, 0]
-            d1 = x[a, 1] - x[b, 1]
-            d2 = x[a, 2] - x[b, 2]
-            length = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-            if length > 0.0:
-                scale = stiffness[q] * rest_length[q] / length
-                jd[a, 0] += scale * d0
-                jd[a, 1] += scale * d1
-                jd[a, 2] += scale * d2
-                jd[b, 0] -= scale * d0
-                jd[b, 1] -= scale * d1
-                jd[b, 2] -= scale * d2
+            moved, p0, p1, p2 = projection3(x, a, b, stiffness[q], rest_length[q])
+            if moved:
+                jd[a, 0] += p0
+                jd[a, 1] += p1
+                jd[a, 2] += p2
+                jd[b, 0] -= p0
+                jd[b, 1] -= p1
+                jd[b, 2] -= p2
     else:  # compiled with it by mslab.jit.compiled (a helper of this module)
         projections_py(x, i, j, stiffness, rest_length, jd)
     for a in range(n):
@@ -92,24 +101,38 @@ def update_py(x: np.ndarray, new: np.ndarray, prev: np.ndarray, free_idx: np.nda
     """
     change = 0.0
     finite = True
-    dim = x.shape[1]
     for r in range(free_idx.shape[0]):
-        a = free_idx[r]
-        for c in range(dim):
-            old = x[a, c]
-            value = new[r, c]
-            if chebyshev:
-                if relax != 1.0:
-                    value = relax * (value - old) + old
-                if omega != 1.0:
-                    value = omega * (value - prev[a, c]) + prev[a, c]
-                prev[a, c] = old
-            x[a, c] = value
-            d = abs(value - old)
-            if not np.isfinite(d):
-                finite = False
-            elif d > change:
-                change = d
+        d = update_row(x, prev, free_idx[r], new, r, omega, relax, chebyshev)
+        if not np.isfinite(d):
+            finite = False
+        elif d > change:
+            change = d
+    return change if finite else np.nan
+
+
+def update_row(x: np.ndarray, prev: np.ndarray, a: int, new: np.ndarray, r: int, omega: float,
+               relax: float, chebyshev: bool) -> float:
+    """Store ``new[r]`` in particle ``a`` (as :func:`update_py`); return its largest change.
+
+    NaN when a coordinate's change is not finite.
+    """
+    change = 0.0
+    finite = True
+    for c in range(x.shape[1]):
+        old = x[a, c]
+        value = new[r, c]
+        if chebyshev:
+            if relax != 1.0:
+                value = relax * (value - old) + old
+            if omega != 1.0:
+                value = omega * (value - prev[a, c]) + prev[a, c]
+            prev[a, c] = old
+        x[a, c] = value
+        d = abs(value - old)
+        if not np.isfinite(d):
+            finite = False
+        elif d > change:
+            change = d
     return change if finite else np.nan
 
 

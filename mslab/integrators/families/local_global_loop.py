@@ -1,0 +1,196 @@
+"""The fast mass-spring method's iterations in one compiled loop, one parallel launch per iteration.
+
+With the global matrix's kept factors split among threads by the elimination tree
+(:mod:`mslab.integrators.newton.tree_solve`), each thread owns the particles of its subtrees
+and the serial *top* owns the last separators' particles. No spring joins two threads'
+particles (a spring is an entry of the global matrix, and two subtrees of the tree share
+none), so one iteration ``k`` is, per thread, in one parallel launch:
+
+1. finish iteration ``k - 1``: the backward sweep of its subtrees (the top's was done) and
+   the update of its particles (plain or Chebyshev: :func:`~mslab.integrators.families.local_step.update_row`);
+2. start iteration ``k``: the local step of the springs that touch its particles, adding
+   to its own particles only; their right-hand side rows; the forward sweep of its subtrees;
+
+then, on the calling thread, the top: the local step for its particles (their springs, in
+spring order), its right-hand side rows, its forward rows, its backward sweep and update.
+The plain loop (:meth:`LocalGlobal.step`) launches three times per iteration and calls
+from Python between them; here each particle still receives the same spring terms in
+spring order and each solve the same operations in the same order, so **the iterates are
+bitwise those of the plain loop**, for any number of threads (``tests/test_local_global_loop.py``).
+
+Used by :meth:`LocalGlobal.step` when the global step has such factors, the scene is 3D,
+and every force besides Hooke springs and linear drag is constant (gravity): forces that
+vary with the iterate are evaluated by their effects in numpy, between launches.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from mslab.integrators.families.local_step import projection3, update_row
+from mslab.integrators.newton.tree_kernels import backward_nodes, forward_nodes, top_solve
+from mslab.jit import compiled, prange
+
+if TYPE_CHECKING:
+    from mslab.integrators.families.local_global import GlobalStep
+    from mslab.integrators.newton.tree_solve import TreeSolve
+
+
+class TreeIterations:
+    """The scene renumbered for :func:`local_global_loop`: particles in the tree's order, springs by owner.
+
+    Inside the loop particle ``slot[a]`` is row ``slot[a]`` of the permuted global matrix
+    for a free particle, ``n_free + k`` for the ``k``-th pinned one: every sweep then reads
+    memory in order, and a subtree's particles lie together. ``owner[slot]``: the thread
+    (``0 .. bins-1``), -1 the top, -2 pinned. Springs ``ptr[t]:ptr[t+1]`` of the tables
+    ``i, j, stiffness, rest_length`` (renumbered) touch thread ``t``'s particles, in
+    increasing spring order; ``t = bins``: those touching the top's (a spring between a
+    thread and the top is in both lists, each adding to its own end).
+    """
+
+    def __init__(self, g: GlobalStep, tree: TreeSolve, n_particles: int):
+        self.tree = tree
+        bins = tree.bins
+        self.order = np.concatenate([g.free_idx[tree.perm], np.flatnonzero(g.pinned)]).astype(np.int64)
+        slot = np.empty(n_particles, dtype=np.int64)
+        slot[self.order] = np.arange(n_particles)
+        self.owner = np.full(n_particles, -2, dtype=np.int64)
+        self.owner[:tree.perm.size] = tree.owner
+        i, j = slot[g.i], slot[g.j]
+        lists = [np.flatnonzero((self.owner[i] == t) | (self.owner[j] == t)) for t in [*range(bins), -1]]
+        springs = np.concatenate(lists).astype(np.int64)
+        self.ptr = np.concatenate([[0], np.cumsum([s.size for s in lists])]).astype(np.int64)
+        self.i, self.j = i[springs].astype(np.uint32), j[springs].astype(np.uint32)
+        self.stiffness = np.ascontiguousarray(g.stiffness[springs])
+        self.rest_length = np.ascontiguousarray(g.rest_length[springs])
+        self._loop = compiled(local_global_loop, "the iterations of fast_mass_spring", fastmath=False)
+
+    def run(self, g: GlobalStep, x: np.ndarray, prev: np.ndarray, base: np.ndarray, h2: float,
+            omega: np.ndarray, relax: float, chebyshev: bool, tol: float) -> int:
+        """Run up to ``len(omega)`` iterations on ``x`` (and ``prev``) in place; return the iterations done.
+
+        ``tol < 0``: no early stop; else stop after the first iteration whose change is at most
+        ``tol`` (absolute); a change that is not finite stops the loop too. Work done and
+        discarded when it stops early: the next iteration's local step and forward sweeps.
+        """
+        t = self.tree
+        xs, ps = x[self.order], prev[self.order]
+        y = np.empty((t.perm.size, 3))
+        jd = np.empty_like(xs)
+        changes = np.zeros(t.bins + 1)
+        done = self._loop(xs, ps, self.i, self.j, self.stiffness, self.rest_length, self.owner, self.ptr,
+                          np.ascontiguousarray(base[t.perm]), g.constant[self.order], h2, omega, relax,
+                          chebyshev, tol, t.indptr, t.indices, t.data, t.inner_end, t.diagonal, t.nodes,
+                          t.offsets, t.top, t.top_ptr, t.top_cols, t.top_vals, y, jd, changes)
+        x[self.order] = xs
+        prev[self.order] = ps
+        return int(done)
+
+
+# -- compiled (numba's subset of Python; helpers from local_step and tree_kernels compiled with it) --
+def local_global_loop(x, prev, i, j, stiffness, rest_length, owner, ptr, base_p, extra, h2, omega, relax,
+                      chebyshev, tol, indptr, indices, data, inner_end, diagonal, nodes, offsets, top, top_ptr,
+                      top_cols, top_vals, y, jd, changes):
+    """Iterate (module docstring) on renumbered particles (:class:`TreeIterations`); return the iterations done.
+
+    ``changes``: each thread's last change, then the top's.
+    """
+    bins = offsets.shape[0] - 1
+    iterations = omega.shape[0]
+    done = 0
+    for it in range(iterations + 1):
+        finish = it > 0
+        start = it < iterations
+        w = omega[it - 1] if finish else 1.0
+        if bins > 1:
+            for t in prange(bins):
+                changes[t] = thread_part(t, finish, start, x, prev, i, j, stiffness, rest_length, owner, ptr,
+                                         base_p, extra, h2, w, relax, chebyshev, indptr, indices, data,
+                                         inner_end, diagonal, nodes, offsets, y, jd)
+        else:
+            changes[0] = thread_part(0, finish, start, x, prev, i, j, stiffness, rest_length, owner, ptr,
+                                     base_p, extra, h2, w, relax, chebyshev, indptr, indices, data,
+                                     inner_end, diagonal, nodes, offsets, y, jd)
+        if finish:
+            done = it
+            change = 0.0
+            for t in range(bins + 1):
+                change = worse(change, changes[t])
+            if not np.isfinite(change) or change <= tol:
+                break
+        if not start:
+            break
+        # the top, on this thread: iteration it from its local step to its update
+        for s in range(top.shape[0]):
+            jd[top[s], 0] = 0.0
+            jd[top[s], 1] = 0.0
+            jd[top[s], 2] = 0.0
+        local_part(bins, -1, x, i, j, stiffness, rest_length, owner, ptr, jd)
+        for s in range(top.shape[0]):
+            right_side(top[s], base_p, extra, h2, jd, y)
+        top_solve(indptr, indices, data, diagonal, top, top_ptr, top_cols, top_vals, y)
+        top_change = 0.0
+        for s in range(top.shape[0]):
+            r = top[s]
+            d = update_row(x, prev, r, y, r, omega[it], relax, chebyshev)
+            top_change = worse(top_change, d)
+        changes[bins] = top_change
+    return done
+
+
+def thread_part(t, finish, start, x, prev, i, j, stiffness, rest_length, owner, ptr, base_p, extra, h2,
+                omega, relax, chebyshev, indptr, indices, data, inner_end, diagonal, nodes, offsets, y,
+                jd):
+    """Thread ``t``'s share of one launch: finish the last iteration, start the next; return its change."""
+    first = offsets[t]
+    last = offsets[t + 1]
+    change = 0.0
+    if finish:
+        backward_nodes(indptr, indices, data, diagonal, nodes, first, last, y)
+        for s in range(first, last):
+            r = nodes[s]
+            d = update_row(x, prev, r, y, r, omega, relax, chebyshev)
+            change = worse(change, d)
+    if start:
+        for s in range(first, last):
+            jd[nodes[s], 0] = 0.0
+            jd[nodes[s], 1] = 0.0
+            jd[nodes[s], 2] = 0.0
+        local_part(t, t, x, i, j, stiffness, rest_length, owner, ptr, jd)
+        for s in range(first, last):
+            right_side(nodes[s], base_p, extra, h2, jd, y)
+        forward_nodes(indptr, indices, data, inner_end, nodes, first, last, y)
+    return change
+
+
+def local_part(lst, who, x, i, j, stiffness, rest_length, owner, ptr, jd):
+    """Add the local step of spring list ``lst`` to the particles owned by ``who`` only, in spring order."""
+    for q in range(ptr[lst], ptr[lst + 1]):
+        a = i[q]
+        b = j[q]
+        moved, p0, p1, p2 = projection3(x, a, b, stiffness[q], rest_length[q])
+        if moved:
+            if owner[a] == who:
+                jd[a, 0] += p0
+                jd[a, 1] += p1
+                jd[a, 2] += p2
+            if owner[b] == who:
+                jd[b, 0] -= p0
+                jd[b, 1] -= p1
+                jd[b, 2] -= p2
+
+
+def right_side(r, base_p, extra, h2, jd, y):
+    """Write row ``r`` of the global step's right-hand side: ``base + h^2 (J d + f_other)``."""
+    y[r, 0] = base_p[r, 0] + h2 * (jd[r, 0] + extra[r, 0])
+    y[r, 1] = base_p[r, 1] + h2 * (jd[r, 1] + extra[r, 1])
+    y[r, 2] = base_p[r, 2] + h2 * (jd[r, 2] + extra[r, 2])
+
+
+def worse(change, d):
+    """The larger of two changes; NaN once either is not finite."""
+    if not (np.isfinite(change) and np.isfinite(d)):
+        return np.nan
+    return max(change, d)
