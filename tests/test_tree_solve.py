@@ -42,18 +42,41 @@ def mesh_matrix(rows: int, cols: int, seed: int, reach: int = 2, shuffle: bool =
     return (sp.diags(rng.uniform(0.01, 0.1, n)) + lap).tocsc()
 
 
-def plain_sweep(perm: np.ndarray, L: sp.csc_matrix, b: np.ndarray) -> np.ndarray:
-    """``A^-1 b`` from ``A[perm][:, perm] = L D L^T``: one thread, columns in order (the definition)."""
+def plain_sweep(perm: np.ndarray, L: sp.csc_matrix, first: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``A^-1 b`` from ``A[perm][:, perm] = L D L^T`` on one thread, supernode by supernode (the definition).
+
+    ``first``: the supernodes' first columns. Forward: each supernode's triangle (row by row,
+    columns increasing), then each row ``r`` below gets ``y[r] -= sum_m L[r, c+m] y[c+m]``
+    (the sum from 0, ``m`` increasing). Backward, supernodes decreasing: ``acc[m] = sum_i
+    L[R_i, c+m] x[R_i]`` (from 0, ``i`` increasing), then from the last column ``x = y / D -
+    acc - sum_b L[c+b, c+a] x[c+b]`` (``b`` increasing). Numpy vectors of the right-hand
+    sides: the same IEEE operations as the compiled loops' scalars.
+    """
     n = L.shape[0]
+    dense = L.toarray()
     y = b[perm].astype(float).copy()
-    for c in range(n):  # forward: y[r] -= L[r, c] y[c], columns increasing
-        for q in range(L.indptr[c] + 1, L.indptr[c + 1]):
-            y[L.indices[q]] -= L.data[q] * y[c]
-    for c in range(n - 1, -1, -1):  # D^-1, then backward: rows increasing in each column
-        acc = y[c] / L.data[L.indptr[c]]
-        for q in range(L.indptr[c] + 1, L.indptr[c + 1]):
-            acc = acc - L.data[q] * y[L.indices[q]]
-        y[c] = acc
+    bounds = list(zip(first, [*first[1:], n], strict=True))
+    below = {}
+    for c, end in bounds:
+        below[c] = [r for r in range(end, n) if dense[r, c] != 0.0 or (L[:, c].indices == r).any()]
+        for a in range(c + 1, end):
+            for bb in range(c, a):
+                y[a] = y[a] - dense[a, bb] * y[bb]
+        for r in below[c]:
+            v = np.zeros(b.shape[1])
+            for m in range(c, end):
+                v = v + dense[r, m] * y[m]
+            y[r] = y[r] - v
+    for c, end in reversed(bounds):
+        acc = {m: np.zeros(b.shape[1]) for m in range(c, end)}
+        for r in below[c]:
+            for m in range(c, end):
+                acc[m] = acc[m] + dense[r, m] * y[r]
+        for a in range(end - 1, c - 1, -1):
+            s = y[a] / dense[a, a] - acc[a]
+            for bb in range(a + 1, end):
+                s = s - dense[bb, a] * y[bb]
+            y[a] = s
     out = np.empty_like(y)
     out[perm] = y
     return out
@@ -100,7 +123,7 @@ def test_every_split_gives_the_bits_of_the_plain_sweep(rows, cols, seed, reach):
     b = np.random.default_rng(seed + 1).standard_normal((A.shape[0], 3))
     with pytest.MonkeyPatch.context() as mp:
         trees = [split_for(A, bins, mp) for bins in (1, 2, 3, 4, 7)]
-    plain = np.column_stack([plain_sweep(trees[0].perm, cholmod_ldlt(A)[1], b[:, m]) for m in range(3)])
+    plain = plain_sweep(trees[0].perm, cholmod_ldlt(A)[1], trees[0].supernodes.sn[:, 0], b)
     for tree in trees:
         assert np.array_equal(tree.solve(b), plain)
 

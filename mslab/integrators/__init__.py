@@ -35,7 +35,8 @@ _FRAMEWORK = {"base"}
 #: solvers``), imported on first use: ``import mslab`` loads no linear algebra
 _FOLDER_OF = {"coefficients": "families", "polynomials": "families", "runge_kutta": "families",
               "splitting": "families", "two_step": "families", "local_global": "families",
-              "local_step": "families", "linear": "newton", "newton_matrix": "newton", "pcg": "newton",
+              "local_step": "families", "local_global_loop": "families", "linear": "newton",
+              "newton_matrix": "newton", "pcg": "newton",
               "solvers": "newton", "tree_solve": "newton", "tree_kernels": "newton"}
 
 

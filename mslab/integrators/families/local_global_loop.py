@@ -7,7 +7,8 @@ particles (a spring is an entry of the global matrix, and two subtrees of the tr
 none), so one iteration ``k`` is, per thread, in one parallel launch:
 
 1. finish iteration ``k - 1``: the backward sweep of its subtrees (the top's was done) and
-   the update of its particles (plain or Chebyshev: :func:`~mslab.integrators.families.local_step.update_row`);
+   the update of its particles (plain or Chebyshev:
+   :func:`~mslab.integrators.families.local_step.update_row`);
 2. start iteration ``k``: the local step of the springs that touch its particles, adding
    to its own particles only; their right-hand side rows; the forward sweep of its subtrees;
 
@@ -30,7 +31,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from mslab.integrators.families.local_step import projection3, update_row
-from mslab.integrators.newton.tree_kernels import backward_nodes, forward_nodes, top_solve
+from mslab.integrators.newton.tree_kernels import backward_supernodes, forward_supernodes, top_solve
 from mslab.jit import compiled, prange
 
 if TYPE_CHECKING:
@@ -80,21 +81,25 @@ class TreeIterations:
         y = np.empty((t.perm.size, 3))
         jd = np.empty_like(xs)
         changes = np.zeros(t.bins + 1)
-        done = self._loop(xs, ps, self.i, self.j, self.stiffness, self.rest_length, self.owner, self.ptr,
-                          np.ascontiguousarray(base[t.perm]), g.constant[self.order], h2, omega, relax,
-                          chebyshev, tol, t.indptr, t.indices, t.data, t.inner_end, t.diagonal, t.nodes,
-                          t.offsets, t.top, t.top_ptr, t.top_cols, t.top_vals, y, jd, changes)
+        springs = (self.i, self.j, self.stiffness, self.rest_length)
+        done = self._loop(xs, ps, springs, self.owner, self.ptr, np.ascontiguousarray(base[t.perm]),
+                          g.constant[self.order], h2, omega, relax, chebyshev, tol, t.kernel_args(), t.nodes,
+                          t.offsets, t.top, y, jd, changes)
         x[self.order] = xs
         prev[self.order] = ps
         return int(done)
 
 
 # -- compiled (numba's subset of Python; helpers from local_step and tree_kernels compiled with it) --
-def local_global_loop(x, prev, i, j, stiffness, rest_length, owner, ptr, base_p, extra, h2, omega, relax,
-                      chebyshev, tol, indptr, indices, data, inner_end, diagonal, nodes, offsets, top, top_ptr,
-                      top_cols, top_vals, y, jd, changes):
-    """Iterate (module docstring) on renumbered particles (:class:`TreeIterations`); return the iterations done.
+def local_global_loop(x: np.ndarray, prev: np.ndarray, springs: tuple, owner: np.ndarray, ptr: np.ndarray,
+                      base_p: np.ndarray, extra: np.ndarray, h2: float, omega: np.ndarray, relax: float,
+                      chebyshev: bool, tol: float, tree: tuple, nodes: np.ndarray, offsets: np.ndarray,
+                      top: np.ndarray, y: np.ndarray, jd: np.ndarray, changes: np.ndarray) -> int:
+    """Iterate (module docstring) on the renumbered particles; return the iterations done.
 
+    ``springs`` = (i, j, stiffness, rest_length) by list (:class:`TreeIterations`); ``tree``
+    = :meth:`TreeSolve.kernel_args <mslab.integrators.newton.tree_solve.TreeSolve.kernel_args>`;
+    ``nodes[offsets[t]:offsets[t+1]]`` thread ``t``'s particles, ``top`` the top's;
     ``changes``: each thread's last change, then the top's.
     """
     bins = offsets.shape[0] - 1
@@ -106,13 +111,11 @@ def local_global_loop(x, prev, i, j, stiffness, rest_length, owner, ptr, base_p,
         w = omega[it - 1] if finish else 1.0
         if bins > 1:
             for t in prange(bins):
-                changes[t] = thread_part(t, finish, start, x, prev, i, j, stiffness, rest_length, owner, ptr,
-                                         base_p, extra, h2, w, relax, chebyshev, indptr, indices, data,
-                                         inner_end, diagonal, nodes, offsets, y, jd)
+                changes[t] = thread_part(t, finish, start, x, prev, springs, owner, ptr, base_p, extra, h2, w,
+                                         relax, chebyshev, tree, nodes, offsets, y, jd)
         else:
-            changes[0] = thread_part(0, finish, start, x, prev, i, j, stiffness, rest_length, owner, ptr,
-                                     base_p, extra, h2, w, relax, chebyshev, indptr, indices, data,
-                                     inner_end, diagonal, nodes, offsets, y, jd)
+            changes[0] = thread_part(0, finish, start, x, prev, springs, owner, ptr, base_p, extra, h2, w,
+                                     relax, chebyshev, tree, nodes, offsets, y, jd)
         if finish:
             done = it
             change = 0.0
@@ -127,46 +130,50 @@ def local_global_loop(x, prev, i, j, stiffness, rest_length, owner, ptr, base_p,
             jd[top[s], 0] = 0.0
             jd[top[s], 1] = 0.0
             jd[top[s], 2] = 0.0
-        local_part(bins, -1, x, i, j, stiffness, rest_length, owner, ptr, jd)
+        local_part(bins, -1, x, springs, owner, ptr, jd)
         for s in range(top.shape[0]):
             right_side(top[s], base_p, extra, h2, jd, y)
-        top_solve(indptr, indices, data, diagonal, top, top_ptr, top_cols, top_vals, y)
+        sn, rows, blk, tri, diagonal, sowner, _, _, top_sn, cptr, contrib, buffer, widest = tree
+        top_solve(sn, rows, blk, tri, diagonal, sowner, top_sn, cptr, contrib, buffer, widest, y)
         top_change = 0.0
         for s in range(top.shape[0]):
             r = top[s]
-            d = update_row(x, prev, r, y, r, omega[it], relax, chebyshev)
-            top_change = worse(top_change, d)
+            top_change = worse(top_change, update_row(x, prev, r, y, r, omega[it], relax, chebyshev))
         changes[bins] = top_change
     return done
 
 
-def thread_part(t, finish, start, x, prev, i, j, stiffness, rest_length, owner, ptr, base_p, extra, h2,
-                omega, relax, chebyshev, indptr, indices, data, inner_end, diagonal, nodes, offsets, y,
-                jd):
+def thread_part(t: int, finish: bool, start: bool, x: np.ndarray, prev: np.ndarray, springs: tuple,
+                owner: np.ndarray, ptr: np.ndarray, base_p: np.ndarray, extra: np.ndarray, h2: float,
+                omega: float, relax: float, chebyshev: bool, tree: tuple, nodes: np.ndarray,
+                offsets: np.ndarray, y: np.ndarray, jd: np.ndarray) -> float:
     """Thread ``t``'s share of one launch: finish the last iteration, start the next; return its change."""
+    sn, rows, blk, tri, diagonal, _, sn_order, sn_offsets, _, _, _, buffer, widest = tree
     first = offsets[t]
     last = offsets[t + 1]
     change = 0.0
     if finish:
-        backward_nodes(indptr, indices, data, diagonal, nodes, first, last, y)
+        backward_supernodes(sn, rows, blk, tri, diagonal, sn_order, sn_offsets[t], sn_offsets[t + 1], widest,
+                            y)
         for s in range(first, last):
             r = nodes[s]
-            d = update_row(x, prev, r, y, r, omega, relax, chebyshev)
-            change = worse(change, d)
+            change = worse(change, update_row(x, prev, r, y, r, omega, relax, chebyshev))
     if start:
         for s in range(first, last):
             jd[nodes[s], 0] = 0.0
             jd[nodes[s], 1] = 0.0
             jd[nodes[s], 2] = 0.0
-        local_part(t, t, x, i, j, stiffness, rest_length, owner, ptr, jd)
+        local_part(t, t, x, springs, owner, ptr, jd)
         for s in range(first, last):
             right_side(nodes[s], base_p, extra, h2, jd, y)
-        forward_nodes(indptr, indices, data, inner_end, nodes, first, last, y)
+        forward_supernodes(sn, rows, blk, tri, sn_order, sn_offsets[t], sn_offsets[t + 1], y, buffer)
     return change
 
 
-def local_part(lst, who, x, i, j, stiffness, rest_length, owner, ptr, jd):
+def local_part(lst: int, who: int, x: np.ndarray, springs: tuple, owner: np.ndarray, ptr: np.ndarray,
+               jd: np.ndarray) -> None:
     """Add the local step of spring list ``lst`` to the particles owned by ``who`` only, in spring order."""
+    i, j, stiffness, rest_length = springs
     for q in range(ptr[lst], ptr[lst + 1]):
         a = i[q]
         b = j[q]
@@ -182,15 +189,16 @@ def local_part(lst, who, x, i, j, stiffness, rest_length, owner, ptr, jd):
                 jd[b, 2] -= p2
 
 
-def right_side(r, base_p, extra, h2, jd, y):
+def right_side(r: int, base_p: np.ndarray, extra: np.ndarray, h2: float, jd: np.ndarray,
+               y: np.ndarray) -> None:
     """Write row ``r`` of the global step's right-hand side: ``base + h^2 (J d + f_other)``."""
     y[r, 0] = base_p[r, 0] + h2 * (jd[r, 0] + extra[r, 0])
     y[r, 1] = base_p[r, 1] + h2 * (jd[r, 1] + extra[r, 1])
     y[r, 2] = base_p[r, 2] + h2 * (jd[r, 2] + extra[r, 2])
 
 
-def worse(change, d):
-    """The larger of two changes; NaN once either is not finite."""
+def worse(change: float, d: float) -> float:
+    """Return the larger of two changes; NaN once either is not finite."""
     if not (np.isfinite(change) and np.isfinite(d)):
         return np.nan
     return max(change, d)

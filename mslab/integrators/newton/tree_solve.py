@@ -4,29 +4,33 @@ A method that solves with the *same* matrix many times (the fast mass-spring met
 step, :mod:`mslab.integrators.families.local_global`: ten solves per frame, one matrix per
 scene and dt) spends most of its time in the triangular solves. CHOLMOD (through cvxopt)
 solves on one core and holds Python's lock. :class:`TreeSolve` keeps CHOLMOD's
-factorisation ``P A P^T = L D L^T`` (simplicial, unit lower ``L``, fill-reducing ``P``)
-and solves with it in compiled loops that share the work among threads:
+factorisation ``P A P^T = L D L^T`` (simplicial, unit lower ``L``; ``P`` METIS's nested
+dissection) and solves with it in compiled loops (:mod:`~mslab.integrators.newton.tree_kernels`)
+that share the work among threads:
 
+* **supernodes** (:class:`Supernodes`): runs of columns with the same rows below them (the
+  separators of nested dissection) are stored as dense blocks; a row's sum over a block's
+  columns is kept in registers, four rows at a time, one store per row instead of one per
+  entry. Narrow runs stay columns.
 * **forward** ``L y = P b``: row ``r`` of ``L`` touches only the rows of its descendants in
   the *elimination tree* (``parent(c)`` = the first row below the diagonal in column ``c``).
-  Subtrees are independent: they are dealt to threads (largest first, until the threads'
-  work is balanced within :data:`BALANCE`), each thread sweeping its columns in increasing
-  order and subtracting ``L[r, c] y[c]`` from the rows of its own subtrees; the *top* of the
-  tree (the nodes in no dealt subtree: the last separators) follows on one thread, row by
-  row, subtracting in increasing column order.
-* ``z = D^-1 y``, then **backward** ``L^T x = z``: column ``c`` reads only its ancestors, so
-  the top goes first, then the subtrees on their threads, each column in decreasing order.
+  Subtrees are independent: whole supernodes' subtrees are dealt to threads (largest
+  first, until the threads' work is balanced within :data:`BALANCE`), each thread sweeping
+  its supernodes in increasing order; the *top* of the tree (the last separators) follows
+  on one thread, pulling the sums the threads left for its rows.
+* ``z = D^-1 y``, then **backward** ``L^T x = z``: a column reads only its ancestors, so the
+  top goes first, then the subtrees on their threads, supernodes in decreasing order.
 
-Every ``y[r]`` receives the same subtractions in the same order (increasing column) as in
-a plain one-thread sweep, whatever the split and the number of threads: **the result is
-bitwise the same on any thread count** (``tests/test_tree_solve.py``). Cost: ``4 nnz(L)``
-flops per right-hand side column, the top's share on one thread (on the 81 x 81 cloth about
-a quarter of the work); memory ``12 nnz(L)`` bytes (one copy of ``L``, 32-bit row indices).
+Every ``y[r]`` is ``b[r]`` minus each supernode's sum for row ``r``, in increasing supernode
+order, whoever computes it (``tests/test_tree_solve.py`` restates the order in plain Python):
+**the result is bitwise the same on any thread count and split**. Cost: ``4 nnz(L)`` flops
+per right-hand side column, the top's share on one thread (on the 81 x 81 cloth's global
+matrix 13 % of the work); memory about ``8 nnz(L)`` bytes.
 
-The factorisation is CHOLMOD's, ordered by METIS's nested dissection (:func:`nested_dissection`;
-CHOLMOD's AMD without pymetis), factored once; ``ArithmeticError`` is
-not caught here: a matrix that is not positive definite makes :func:`tree_factor` return
-None and the caller keeps its usual :class:`~mslab.integrators.newton.linear.Factor`.
+The factorisation is CHOLMOD's (:func:`cholmod_ldlt`), ordered by METIS's nested dissection
+(:func:`nested_dissection`; CHOLMOD's AMD without pymetis), factored once; a matrix that is
+not positive definite makes :func:`tree_factor` return None and the caller keeps its usual
+:class:`~mslab.integrators.newton.linear.Factor`.
 """
 
 from __future__ import annotations
@@ -48,6 +52,9 @@ if TYPE_CHECKING:
 BALANCE = 1.03
 #: below this many entries in L a solve runs on one thread (a parallel launch costs more)
 MIN_PARALLEL_ENTRIES = 50_000
+#: supernodes narrower than this are solved column by column (a row of a dense block pays a
+#: set-up that only four or more columns repay: measured on the 81 x 81 cloth's factor)
+MIN_WIDTH = 4
 
 
 def cholmod_ldlt(A: sp.spmatrix) -> tuple[np.ndarray, sp.csc_matrix] | None:
@@ -183,33 +190,33 @@ class TreeSolve:
         self.diagonal = L.diagonal().copy()
         strict = sp.tril(L, -1, format="csc")
         strict.sort_indices()
-        self.indptr = strict.indptr.astype(np.int64)
-        self.indices = strict.indices.astype(np.int32)
-        self.data = strict.data.astype(float)
+        indptr, indices = strict.indptr.astype(np.int64), strict.indices.astype(np.int64)
         parent = np.full(n, -1, dtype=np.int64)  # the elimination tree
-        has = np.diff(self.indptr) > 0
-        parent[has] = self.indices[self.indptr[:-1][has]]
-        rows = strict.tocsr()
-        work = np.diff(self.indptr) + np.diff(rows.indptr) + 1
+        has = np.diff(indptr) > 0
+        parent[has] = indices[indptr[:-1][has]]
+        table = Supernodes(indptr, indices, strict.data, parent)
+        self.supernodes = table
         bins = bins if strict.nnz >= MIN_PARALLEL_ENTRIES else 1
-        self.owner = deal_subtrees(parent, work, bins)
+        self.sowner = deal_subtrees(table.parent, table.work, bins)  # each supernode's thread, -1: top
+        self.owner = np.repeat(self.sowner, table.sn[:, 1])  # each node's
         self.bins = bins
-        lists = [np.flatnonzero(self.owner == t) for t in range(bins)]
-        self.nodes = np.concatenate(lists).astype(np.int64) if n else np.zeros(0, np.int64)
-        self.offsets = np.concatenate([[0], np.cumsum([len(c) for c in lists])]).astype(np.int64)
+        lists = [np.flatnonzero(self.sowner == t) for t in range(bins)]
+        self.sn_order = np.concatenate(lists).astype(np.int64)
+        self.sn_offsets = np.concatenate([[0], np.cumsum([len(c) for c in lists])]).astype(np.int64)
+        self.top_sn = np.flatnonzero(self.sowner < 0).astype(np.int64)
+        node_lists = [np.flatnonzero(self.owner == t) for t in range(bins)]
+        self.nodes = np.concatenate(node_lists).astype(np.int64) if n else np.zeros(0, np.int64)
+        self.offsets = np.concatenate([[0], np.cumsum([len(c) for c in node_lists])]).astype(np.int64)
         self.top = np.flatnonzero(self.owner < 0).astype(np.int64)
-        # each column's entries in rows of its own thread come first (the top's rows are the
-        # ancestors above a subtree: larger numbers); the rest reach the top by its rows
-        col_owner = np.repeat(self.owner, np.diff(self.indptr))
-        own = self.owner[self.indices] == col_owner
-        counted = np.concatenate([[0], np.cumsum(own)])
-        self.inner_end = self.indptr[:-1] + counted[self.indptr[1:]] - counted[self.indptr[:-1]]
-        top_rows = rows[self.top]
-        top_rows.sort_indices()
-        self.top_ptr = top_rows.indptr.astype(np.int64)
-        self.top_cols = top_rows.indices.astype(np.int32)
-        self.top_vals = top_rows.data.astype(float)
+        self.cptr, self.contrib = table.inner_and_top(self.sowner, self.owner)
+        self.buffer = np.zeros((table.rows.size, 3))
         self._kernel = compiled(tree_solve_kernel, "the triangular solves of the kept factorisation")
+
+    def kernel_args(self) -> tuple:
+        """Return the arrays of the compiled solves (``tree_kernels.tree_solve_kernel``'s order)."""
+        t = self.supernodes
+        return (t.sn, t.rows, t.blk, t.tri, self.diagonal, self.sowner, self.sn_order, self.sn_offsets,
+                self.top_sn, self.cptr, self.contrib, self.buffer, t.widest)
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         """``A^-1 b`` (timed)."""
@@ -224,12 +231,81 @@ class TreeSolve:
             block = cols[:, first:first + 3]
             if block.shape[1] < 3:
                 block = np.concatenate([block, np.zeros((n, 3 - block.shape[1]))], axis=1)
-            self._kernel(self.perm, self.indptr, self.indices, self.data, self.inner_end, self.diagonal,
-                         self.nodes, self.offsets, self.top, self.top_ptr, self.top_cols, self.top_vals,
-                         block, work, out)
+            self._kernel(self.perm, *self.kernel_args(), block, work, out)
             x[:, first:first + 3] = out[:, :min(3, k - first)]
         self.solve_seconds = time.perf_counter() - start
         return x.reshape(rhs.shape)
+
+
+class Supernodes:
+    """The strict lower part of ``L`` by supernodes: runs of columns ``c .. c+w-1`` with nested structure.
+
+    Column ``c+m``'s rows below the diagonal are ``c+m+1 .. c+w-1`` (the supernode's
+    triangle) and then the same rows ``R`` for every column (``parent(c+m) = c+m+1``:
+    fundamental supernodes; those narrower than :data:`MIN_WIDTH` are cut into columns).
+    Stored dense: ``tri`` (``w x w`` row-major, the strict lower triangle ``L[c+a, c+b]``,
+    ``a > b``) and ``blk`` (``|R| x w`` row-major, ``L[R[i], c+m]``): the solves read them
+    in order and sum over a row's ``w`` columns in registers.
+
+    ``sn[k]`` = (first column, width, start in ``rows``, start in ``blk``, start in ``tri``,
+    rows of its own thread (set by :meth:`inner_and_top`), ``|R|``); ``parent`` the tree of
+    supernodes, ``work`` each one's entries (for the deal), ``widest`` the largest width.
+    """
+
+    def __init__(self, indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, parent: np.ndarray):
+        n = parent.size
+        count = np.diff(indptr)
+        joins = np.zeros(n, dtype=bool)  # column c continues the supernode of c - 1
+        joins[1:] = (parent[:-1] == np.arange(1, n)) & (count[1:] == count[:-1] - 1)
+        run = np.cumsum(~joins) - 1  # narrow runs are cut into columns: the sweep of one column is faster
+        joins &= np.bincount(run)[run] >= MIN_WIDTH
+        first = np.flatnonzero(~joins)
+        width = np.diff(np.append(first, n))
+        of_column = np.repeat(np.arange(first.size), width)
+        below = count[first] - (width - 1)
+        rows_at = np.concatenate([[0], np.cumsum(below)])
+        blk_at = np.concatenate([[0], np.cumsum(below * width)])
+        tri_at = np.concatenate([[0], np.cumsum(width * width)])
+        self.sn = np.column_stack([first, width, rows_at[:-1], blk_at[:-1], tri_at[:-1], below, below])
+        self.sn = self.sn.astype(np.int64)
+        self.widest = int(width.max()) if n else 1
+        # every entry of the strict lower part: its supernode k, column offset m and place e in its column
+        k = np.repeat(of_column, count)
+        m = np.repeat(np.arange(n) - first[of_column], count)
+        e = np.arange(indptr[-1]) - np.repeat(indptr[:-1], count)
+        w = width[k]
+        in_tri = e < w - 1 - m
+        self.tri = np.zeros(int(tri_at[-1]))
+        a = m + 1 + e  # the triangle's row (relative to the supernode's first column)
+        self.tri[(tri_at[k] + a * w + m)[in_tri]] = data[in_tri]
+        i = e - (w - 1 - m)  # the row's place in R
+        self.blk = np.zeros(int(blk_at[-1]))
+        self.blk[(blk_at[k] + i * w + m)[~in_tri]] = data[~in_tri]
+        from_first = ~in_tri & (m == 0)
+        self.rows = np.zeros(int(rows_at[-1]), dtype=np.int64)
+        self.rows[(rows_at[k] + i)[from_first]] = indices[from_first]
+        last = first + width - 1
+        self.parent = np.where(parent[last] >= 0, of_column[np.maximum(parent[last], 0)], -1)
+        self.work = (count[first] * width + width).astype(float)
+
+    def inner_and_top(self, sowner: np.ndarray, owner: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Set each supernode's rows of its own thread; return the top rows' contributions (CSR).
+
+        A thread's supernode updates the rows of its thread directly (they come first in
+        ``R``: a subtree's nodes are numbered below the top above it) and leaves its sums for
+        the top's rows in the buffer. Returns ``cptr`` (per row) and ``contrib`` (supernode,
+        place in its ``R``): for each top row, every supernode whose ``R`` holds it, increasing.
+        """
+        sn, rows = self.sn, self.rows
+        k = np.repeat(np.arange(sn.shape[0]), sn[:, 6])
+        place = np.arange(rows.size) - sn[k, 2]
+        mine = owner[rows] == sowner[k]
+        sn[:, 5] = np.bincount(k[mine], minlength=sn.shape[0])
+        to_top = owner[rows] < 0
+        order = np.lexsort((k[to_top], rows[to_top]))
+        contrib = np.column_stack([k[to_top][order], place[to_top][order]]).astype(np.int64)
+        cptr = np.concatenate([[0], np.cumsum(np.bincount(rows[to_top], minlength=owner.size))])
+        return cptr.astype(np.int64), contrib.reshape(-1, 2)
 
 
 def tree_factor(A: sp.spmatrix, counters: Counters, threads: int | None = None) -> TreeSolve | None:
