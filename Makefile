@@ -47,7 +47,8 @@ EMULATED_CPU += NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL AVX512_SPR" \
 	OPENBLAS_CORETYPE=$(shell grep -qw avx2 /proc/cpuinfo && echo Haswell || echo Nehalem)
 endif
 EMULATED_TESTS := tests/test_implicit_cloth.py tests/test_newton_matrix.py tests/test_job_backend.py \
-	tests/hard_cases/test_ledger_order.py tests/test_stability.py tests/test_spring_runs.py
+	tests/hard_cases/test_ledger_order.py tests/test_stability.py tests/test_spring_runs.py \
+	tests/test_tree_solve.py tests/test_local_global_loop.py
 
 test-emulated: $(STAMP)
 	$(EMULATED_CPU) $(PY) $(PYTEST_2) -p no:cacheprovider $(NBVAL) $(EMULATED_TESTS) lessons/
