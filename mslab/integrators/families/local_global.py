@@ -209,7 +209,7 @@ def tree_iterations(g: GlobalStep, system: System) -> TreeIterations | None:
     if not isinstance(g.factor, TreeSolve) or system.dim != 3 or g.varying or g.damped_springs:
         return None
     if g.loop is None:
-        g.loop = TreeIterations(g, g.factor, system.n_particles)
+        g.loop = TreeIterations(g, g.factor, system.mass)
     return g.loop
 
 
@@ -331,8 +331,8 @@ class LocalGlobal(Integrator):
             base = base - (dt * dt) * (g.lap_fp @ y[g.pinned])
         return base
 
-    def weights(self, g: GlobalStep, system: System, y: np.ndarray, xn: np.ndarray, base: np.ndarray,
-                dt: float) -> tuple[np.ndarray, float]:
+    def weights(self, g: GlobalStep, system: System, y: np.ndarray | None, xn: np.ndarray,
+                base: np.ndarray | None, dt: float) -> tuple[np.ndarray, float]:
         """Return Chebyshev's weights ``omega_k`` and relaxation (1 without Chebyshev; module docstring)."""
         if not self.chebyshev:
             return np.ones(self.iterations), 1.0
@@ -354,19 +354,21 @@ class LocalGlobal(Integrator):
         g = global_step(system, dt)
         c = system.counters
         xn, vn = state.x, state.v
+        scale = 1.0 + float(np.max(np.abs(xn))) if xn.size else 1.0
+        loop = tree_iterations(g, system)
+        if loop is not None and (not self.chebyshev or self.rho is not None or g.rho is not None):
+            # one compiled loop, one parallel launch per iteration: the same iterates
+            omega, relax = self.weights(g, system, None, xn, None, dt)
+            tol = -1.0 if self.tol is None else self.tol * scale
+            x, done = loop.run(g, xn, vn, dt, omega, relax, self.chebyshev, tol)
+            c.n_force += done
+            c.n_solve += done
+            return self._finish(system, state, x, done, dt)
         y = xn + dt * vn
         base = self._base(g, system, state, dt)
         omega, relax = self.weights(g, system, y, xn, base, dt)
         x = y.copy()
         prev = y.copy()  # the iterate before the last (Chebyshev)
-        scale = 1.0 + float(np.max(np.abs(xn))) if xn.size else 1.0
-        loop = tree_iterations(g, system)
-        if loop is not None:  # one compiled loop, one parallel launch per iteration: same iterates
-            tol = -1.0 if self.tol is None else self.tol * scale
-            done = loop.run(g, x, prev, base, dt * dt, omega, relax, self.chebyshev, tol)
-            c.n_force += done
-            c.n_solve += done
-            return self._finish(system, state, x, done, dt)
         jd = np.empty_like(x)
         rhs = np.empty(base.shape, order="F")  # the solvers read columns
         done = 0

@@ -51,9 +51,10 @@ class TreeIterations:
     thread and the top is in both lists, each adding to its own end).
     """
 
-    def __init__(self, g: GlobalStep, tree: TreeSolve, n_particles: int):
+    def __init__(self, g: GlobalStep, tree: TreeSolve, mass: np.ndarray):
         self.tree = tree
         bins = tree.bins
+        n_particles = mass.size
         self.order = np.concatenate([g.free_idx[tree.perm], np.flatnonzero(g.pinned)]).astype(np.int64)
         slot = np.empty(n_particles, dtype=np.int64)
         slot[self.order] = np.arange(n_particles)
@@ -63,45 +64,78 @@ class TreeIterations:
         lists = [np.flatnonzero((self.owner[i] == t) | (self.owner[j] == t)) for t in [*range(bins), -1]]
         springs = np.concatenate(lists).astype(np.int64)
         self.ptr = np.concatenate([[0], np.cumsum([s.size for s in lists])]).astype(np.int64)
-        self.i, self.j = i[springs].astype(np.uint32), j[springs].astype(np.uint32)
-        self.stiffness = np.ascontiguousarray(g.stiffness[springs])
-        self.rest_length = np.ascontiguousarray(g.rest_length[springs])
+        self.springs = (i[springs].astype(np.uint32), j[springs].astype(np.uint32),
+                        np.ascontiguousarray(g.stiffness[springs]),
+                        np.ascontiguousarray(g.rest_length[springs]))
+        self.mass = np.ascontiguousarray(mass[self.order])
+        self.extra = np.ascontiguousarray(g.constant[self.order])  # the constant forces (gravity)
+        #: springs to pinned particles, rows in the tree's order: ``- h^2 L_fp y_p`` of the right side
+        self.coupling = g.lap_fp[tree.perm] if g.lap_fp.nnz else None
+        self.pinned = np.flatnonzero(g.pinned)
         self._loop = compiled(local_global_loop, "the iterations of fast_mass_spring", fastmath=False)
 
-    def run(self, g: GlobalStep, x: np.ndarray, prev: np.ndarray, base: np.ndarray, h2: float,
-            omega: np.ndarray, relax: float, chebyshev: bool, tol: float) -> int:
-        """Run up to ``len(omega)`` iterations on ``x`` (and ``prev``) in place; return the iterations done.
+    def run(self, g: GlobalStep, xn: np.ndarray, vn: np.ndarray, dt: float, omega: np.ndarray, relax: float,
+            chebyshev: bool, tol: float) -> tuple[np.ndarray, int]:
+        """Run up to ``len(omega)`` iterations from ``y = x_n + h v_n``; return (positions, iterations done).
 
         ``tol < 0``: no early stop; else stop after the first iteration whose change is at most
         ``tol`` (absolute); a change that is not finite stops the loop too. Work done and
         discarded when it stops early: the next iteration's local step and forward sweeps.
         """
         t = self.tree
-        xs, ps = x[self.order], prev[self.order]
-        y = np.empty((t.perm.size, 3))
-        jd = np.empty_like(xs)
-        changes = np.zeros(t.bins + 1)
-        springs = (self.i, self.j, self.stiffness, self.rest_length)
-        done = self._loop(xs, ps, springs, self.owner, self.ptr, np.ascontiguousarray(base[t.perm]),
-                          g.constant[self.order], h2, omega, relax, chebyshev, tol, t.kernel_args(), t.nodes,
-                          t.offsets, t.top, y, jd, changes)
-        x[self.order] = xs
-        prev[self.order] = ps
-        return int(done)
+        y = xn + dt * vn
+        n = self.order.size
+        coupling = (self.coupling @ y[self.pinned] if self.coupling is not None
+                    else np.zeros((t.perm.size, 3)))
+        x = np.empty_like(y)
+        work = (np.empty((n, 3)), np.empty((n, 3)), np.empty((t.perm.size, 3)), np.empty((t.perm.size, 3)),
+                np.empty((n, 3)), np.zeros(t.bins + 1))
+        done = self._loop(y, xn, x, self.order, self.mass, dt * g.gamma, coupling, self.coupling is not None,
+                          self.springs, self.owner, self.ptr, self.extra, dt * dt, omega, relax, chebyshev,
+                          tol, t.kernel_args(), t.nodes, t.offsets, t.top, work)
+        return x, int(done)
 
 
 # -- compiled (numba's subset of Python; helpers from local_step and tree_kernels compiled with it) --
-def local_global_loop(x: np.ndarray, prev: np.ndarray, springs: tuple, owner: np.ndarray, ptr: np.ndarray,
-                      base_p: np.ndarray, extra: np.ndarray, h2: float, omega: np.ndarray, relax: float,
-                      chebyshev: bool, tol: float, tree: tuple, nodes: np.ndarray, offsets: np.ndarray,
-                      top: np.ndarray, y: np.ndarray, jd: np.ndarray, changes: np.ndarray) -> int:
-    """Iterate (module docstring) on the renumbered particles; return the iterations done.
+def local_global_loop(y_in: np.ndarray, xn: np.ndarray, x_out: np.ndarray, order: np.ndarray,
+                      mass: np.ndarray, h_gamma: float, coupling: np.ndarray, coupled: bool, springs: tuple,
+                      owner: np.ndarray, ptr: np.ndarray, extra: np.ndarray, h2: float, omega: np.ndarray,
+                      relax: float, chebyshev: bool, tol: float, tree: tuple, nodes: np.ndarray,
+                      offsets: np.ndarray, top: np.ndarray, work: tuple) -> int:
+    """Iterate from ``y_in`` (module docstring); write the last iterate to ``x_out``; return the iterations.
 
-    ``springs`` = (i, j, stiffness, rest_length) by list (:class:`TreeIterations`); ``tree``
-    = :meth:`TreeSolve.kernel_args <mslab.integrators.newton.tree_solve.TreeSolve.kernel_args>`;
+    Particles are renumbered by ``order`` inside (slot ``r`` holds particle ``order[r]``):
+    ``x, prev = y`` and the constant right-hand side ``base = M y + h gamma x_n - h^2 L_fp
+    y_p`` (``coupling`` = ``L_fp y_p``, used when ``coupled``), as :meth:`LocalGlobal._base`
+    writes it. ``springs`` = (i, j, stiffness, rest_length) by list (:class:`TreeIterations`);
+    ``tree`` = :meth:`TreeSolve.kernel_args <mslab.integrators.newton.tree_solve.TreeSolve.kernel_args>`;
     ``nodes[offsets[t]:offsets[t+1]]`` thread ``t``'s particles, ``top`` the top's;
-    ``changes``: each thread's last change, then the top's.
+    ``work`` = (x, prev, base, y, jd, changes): ``changes`` each thread's last change, then the top's.
     """
+    x, prev, base_p, y, jd, changes = work
+    n_free = base_p.shape[0]
+    for r in range(order.shape[0]):
+        a = order[r]
+        for c in range(3):
+            x[r, c] = y_in[a, c]
+            prev[r, c] = y_in[a, c]
+            if r < n_free:
+                b = mass[r] * y_in[a, c] + h_gamma * xn[a, c]
+                base_p[r, c] = b - h2 * coupling[r, c] if coupled else b
+    done = iterate(x, prev, springs, owner, ptr, base_p, extra, h2, omega, relax, chebyshev, tol, tree, nodes,
+                   offsets, top, y, jd, changes)
+    for r in range(order.shape[0]):
+        a = order[r]
+        for c in range(3):
+            x_out[a, c] = x[r, c]
+    return done
+
+
+def iterate(x: np.ndarray, prev: np.ndarray, springs: tuple, owner: np.ndarray, ptr: np.ndarray,
+            base_p: np.ndarray, extra: np.ndarray, h2: float, omega: np.ndarray, relax: float,
+            chebyshev: bool, tol: float, tree: tuple, nodes: np.ndarray, offsets: np.ndarray,
+            top: np.ndarray, y: np.ndarray, jd: np.ndarray, changes: np.ndarray) -> int:
+    """Iterate on the renumbered particles (module docstring); return how many iterations were done."""
     bins = offsets.shape[0] - 1
     iterations = omega.shape[0]
     done = 0
