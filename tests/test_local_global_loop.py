@@ -26,7 +26,7 @@ def steps(scene, method: LocalGlobal, n: int, compiled_loop: bool, bins: int, dt
     s = copy.deepcopy(scene.system)
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(tree_solve, "MIN_PARALLEL_ENTRIES", 0)  # split a small cloth too
-        mp.setattr(tree_solve, "thread_count", lambda threads: bins)
+        mp.setattr(tree_solve, "bins_for", lambda threads: bins)
         if not compiled_loop:
             mp.setattr(local_global, "tree_iterations", lambda g, system: None)
         state, out = scene.state0, []
@@ -80,3 +80,25 @@ def test_a_change_stays_not_finite():
     worse = local_global_loop.worse
     assert worse(0.5, 0.25) == 0.5 and worse(0.25, 0.5) == 0.5
     assert np.isnan(worse(np.nan, 1.0)) and np.isnan(worse(1.0, np.inf)) and np.isnan(worse(np.nan, 0.0))
+
+
+def test_process_pools_work_after_the_threads_ran():
+    """GNU OpenMP is not fork-safe: mslab's pools start their workers from a fresh server process.
+
+    The parent runs the compiled loop on its threads, then two workers do the same (one step
+    of the 50 x 50 cloth each): forked from the parent, each would abort at its first
+    parallel loop ("fork() called from a process already using GNU OpenMP").
+    """
+    from mslab.jit import numba
+    from mslab.precision.runs import _run_tasks
+
+    if numba().config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("numba has one thread here: no OpenMP threads to fork from")
+    scene = scaled_cloth(50, drag_rate=1.0)
+    s = copy.deepcopy(scene.system)
+    mslab.get_method("fast_mass_spring").step(s, scene.state0, 1 / 30)
+    assert local_global.global_step(s, 1 / 30).factor.bins > 1  # the threads ran in this process
+    tasks = [("mslab", scene, "fast_mass_spring", 1 / 30, 1 / 30, 2, None)] * 2
+    pooled = _run_tasks(tasks, 2, None)
+    alone = _run_tasks(tasks[:1], 1, None)
+    assert all(np.array_equal(r["x"], alone[0]["x"]) for r in pooled)

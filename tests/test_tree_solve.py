@@ -88,8 +88,13 @@ def split_for(A: sp.spmatrix, bins: int, monkeypatch: pytest.MonkeyPatch) -> Tre
     return TreeSolve(A, perm, L, bins=bins)
 
 
-def test_factors_are_a_factorisation_of_the_matrix():
-    A = mesh_matrix(12, 15, 0)
+@pytest.mark.parametrize("simplicial", [True, False])  # CHOLMOD's L D L^T, then its (default) L L^T
+def test_factors_are_a_factorisation_of_the_matrix(simplicial, monkeypatch):
+    import cvxopt.cholmod
+
+    if simplicial:
+        monkeypatch.setitem(cvxopt.cholmod.options, "supernodal", 0)
+    A = mesh_matrix(40, 43, 0)
     perm, L = cholmod_ldlt(A)
     D = L.diagonal()
     unit = L - sp.diags(D) + sp.eye(A.shape[0])
@@ -210,3 +215,27 @@ def test_fast_mass_spring_steps_with_the_tree_solves(monkeypatch):
     bound = 10 * 10 * np.linalg.cond(Q.toarray()) * np.finfo(float).eps * np.abs(tree_step.x).max()
     assert np.abs(tree_step.x - factor_step.x).max() <= bound
     assert bound < 1e-10  # a bound that still says something
+
+
+def test_bad_right_sides_are_refused():
+    tree = tree_factor(mesh_matrix(6, 7, 0), Counters())
+    for wrong in (np.ones(41), np.ones(43), np.ones((43, 3)), np.ones((42, 2, 2))):
+        with pytest.raises(ValueError, match="42 rows"):
+            tree.solve(wrong)
+    with pytest.raises(TypeError, match="complex"):
+        tree.solve(np.ones(42) * 1j)
+
+
+def test_not_symmetric_or_empty_gives_none():
+    A = mesh_matrix(6, 6, 0).tolil()
+    A[0, 5] += 0.5  # one entry above the diagonal without its mirror
+    assert tree_factor(A.tocsc(), Counters()) is None
+    assert tree_factor(sp.csc_matrix((0, 0)), Counters()) is None
+
+
+def test_more_threads_than_numba_has_are_clipped(monkeypatch):
+    from mslab.jit import numba
+
+    monkeypatch.setenv("MSLAB_THREADS", "64")
+    assert tree_solve.bins_for(None) == min(64, numba().config.NUMBA_NUM_THREADS)
+    assert tree_solve.bins_for(1) == 1

@@ -8,6 +8,8 @@ warm-up where one is needed, so compilation and first-call costs stay out of the
 from __future__ import annotations
 
 import math
+import multiprocessing
+import sys
 import time
 import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
@@ -177,7 +179,10 @@ def _run_tasks(tasks: list, jobs: int, bar: Any) -> list[dict]:
     """Run error tasks serially or in a process pool (same order as ``tasks``)."""
     results: list = [None] * len(tasks)
     if jobs > 1 and len(tasks) > 1:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
+        # workers from a fresh server process, not forks of this one: a fork of a process whose
+        # compiled loops started GNU OpenMP's threads aborts at its own first parallel loop
+        context = multiprocessing.get_context("forkserver" if sys.platform.startswith("linux") else None)
+        with ProcessPoolExecutor(max_workers=jobs, mp_context=context) as pool:
             futures = {pool.submit(_call, task): i for i, task in enumerate(tasks)}
             from concurrent.futures import as_completed
 
