@@ -14,7 +14,7 @@ from mslab import stability
 from mslab.errors import InstabilityError
 from mslab.integrators import ImplicitRK
 from mslab.integrators.families.local_global import LocalGlobal
-from mslab.integrators.newton import linear, newton_matrix
+from mslab.integrators.newton import factor, linear, newton_matrix
 from mslab.scenes.generators import cloth
 from mslab.scenes.loader import scene_path
 from mslab.scenes.toml_read import read_scene_file
@@ -77,12 +77,12 @@ def test_symmetric_factor_reads_the_inertia():
     A = newton_matrix.newton_matrix(K, D, np.repeat(s.mass, 3), free, 1 / 30)
     negative = int(np.count_nonzero(np.linalg.eigvalsh(A.toarray()) < 0))
     assert negative > 0
-    old = linear.DENSE_MAX
+    old = factor.DENSE_MAX
     try:
-        linear.DENSE_MAX = 10  # force the sparse path on this small matrix
-        f = linear.Factor(A, s.counters)
+        factor.DENSE_MAX = 10  # force the sparse path on this small matrix
+        f = factor.Factor(A, s.counters)
     finally:
-        linear.DENSE_MAX = old
+        factor.DENSE_MAX = old
     assert not f.definite and f.n_negative == negative
 
 

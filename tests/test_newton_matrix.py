@@ -8,6 +8,8 @@ and the numpy backend of the same runs.
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import pytest
 
@@ -32,6 +34,15 @@ def moved_cloth(n=9, drag=0.3, damping=0.0, seed=0):
     return scene, x, v
 
 
+def off_mass_row_sum(A, system):
+    """``max_i m_i^-1 sum_j |A_ij - M_ij|`` on the free dofs, by scipy arithmetic."""
+    import scipy.sparse as sp
+
+    free = np.repeat(~system.pinned, system.dim)
+    mass = np.repeat(system.mass, system.dim)[free]
+    return float((np.asarray(abs(A - sp.diags(mass)).sum(axis=1)).ravel() / mass).max())
+
+
 @pytest.mark.parametrize("c", [1e-3, 1 / 60, 0.1])
 @pytest.mark.parametrize("damping", [0.0, 0.5])
 def test_pattern_assembly_equals_scipy_arithmetic(c, damping):
@@ -45,12 +56,8 @@ def test_pattern_assembly_equals_scipy_arithmetic(c, damping):
     ref = newton_matrix.newton_matrix(K, D, np.repeat(system.mass, dim), free, c)
     assert A.shape == ref.shape
     assert abs(A - ref).max() <= 1e-14 * abs(ref).max()
-    # the round-off floor's row sums: max_i sum_j sum_e |c M^-1 (c K_e + D_e)|_ij over the effects' terms
-    minv = np.repeat(system.inv_mass, dim)
-    stiff, damp = system.jacobian_terms(x, v)
-    lin = sum(abs(k) * c * c for k in stiff) + sum(abs(d) * c for d in damp)
-    rows = np.asarray(lin.sum(axis=1)).ravel() * minv
-    assert solver.row_sum == pytest.approx(rows.max(), rel=1e-13)
+    # the round-off floor's row sums: max_i m_i^-1 sum_j |A - M|_ij
+    assert solver.row_sum == pytest.approx(off_mass_row_sum(ref, system), rel=1e-13)
     # the same pattern is kept (no new analysis) for another state, and still assembles right
     pattern = solver.pattern
     A2 = solver._assemble((x + 0.01, -v), np.zeros(x.size))
@@ -211,3 +218,125 @@ def test_compiled_spring_jacobians_equal_finite_differences_of_the_compiled_forc
         dfdv = (model.force(x, v + e)[0] - model.force(x, v - e)[0]).ravel() / (2 * h)
         assert np.allclose(K[:, col], dfdx, rtol=1e-6, atol=1e-6)
         assert np.allclose(D[:, col], dfdv, rtol=1e-6, atol=1e-6)
+
+
+# -- the compiled assembly, the clamped Newton matrix, the CG model (issue 22, item 2) ---------------
+@pytest.mark.parametrize("damping", [0.0, 0.5])
+@pytest.mark.parametrize("c", [1 / 60, 0.1])
+def test_compiled_assembly_equals_the_numpy_assembly(c, damping):
+    """Springs written straight into A by the compiled loop (damped springs: their compiled
+    Jacobians through the generic path) = scipy's arithmetic on the numpy Jacobians."""
+    scene, x, v = moved_cloth(damping=damping)
+    system = scene.system
+    dim = system.dim
+    free = np.repeat(~system.pinned, dim)
+    view = CompiledSystem(system, ForceModel(system))
+    solver = linear.StageSolver(view, c, "reuse")
+    assert solver.compiled is not None
+    before = system.counters.snapshot()
+    A = solver._assemble((x, v), np.zeros(x.size))
+    assert system.counters.since(before)["n_jac"] == 1
+    ref = newton_matrix.newton_matrix(*system.jacobians(x, v), np.repeat(system.mass, dim), free, c)
+    assert abs(A - ref).max() <= 1e-13 * abs(ref).max()
+    assert solver.row_sum == pytest.approx(off_mass_row_sum(ref, system), rel=1e-12)
+    assert solver.symmetric == (damping == 0.0 or None)
+    A2 = solver._assemble((x + 0.01, -v), np.zeros(x.size))  # same kept pattern, another state
+    ref2 = newton_matrix.newton_matrix(*system.jacobians(x + 0.01, -v), np.repeat(system.mass, dim), free, c)
+    assert abs(A2 - ref2).max() <= 1e-13 * abs(ref2).max()
+    assert view.potential_energy(x) == pytest.approx(system.potential_energy(x), rel=1e-12)
+
+
+def test_clamped_matrix_drops_exactly_the_compressed_springs_terms():
+    """Clamped minus exact = the compressed springs' ``c^2 k (1 - L/l) P`` blocks (from the numpy
+    Jacobians of a scene holding only those springs), and positive definite where exact is not."""
+    scene = cloth(8, 8, structural=400.0, shear=40.0, bend=4.0, gamma=0.0)
+    system = scene.system
+    rng = np.random.default_rng(3)
+    x = 0.7 * scene.state0.x + 0.01 * rng.standard_normal(scene.state0.x.shape)  # compressed
+    v = np.zeros_like(x)
+    c = 1 / 30
+    free = np.repeat(~system.pinned, 3)
+    view = CompiledSystem(system, ForceModel(system))
+    exact = linear.StageSolver(view, c, "reuse")._assemble((x, v), v.ravel()).toarray()
+    clamped = linear.StageSolver(view, c, "reuse", clamp=True)._assemble((x, v), v.ravel()).toarray()
+    assert np.linalg.eigvalsh(exact).min() < 0 < np.linalg.eigvalsh(clamped).min()
+    # the dropped terms: K(L) - K(L = l) of the compressed springs is k (1 - L/l) P per block
+    diff = np.zeros_like(exact)
+    for e in system.effects:
+        s = e.hooke_springs()
+        if s is None:
+            continue
+        length = np.linalg.norm(x[s.i] - x[s.j], axis=1)
+        short = length < s.rest_length
+        pairs = np.stack([s.i[short], s.j[short]], 1)
+        with_rest = Springs(pairs, s.stiffness[short], s.rest_length[short], 0.0, system.n_particles)
+        at_length = Springs(pairs, s.stiffness[short], length[short], 0.0, system.n_particles)
+        dK = (with_rest.jacobians(x, v)[0] - at_length.jacobians(x, v)[0]).toarray()
+        diff += c * c * dK[free][:, free]
+    assert np.abs(clamped - exact - diff).max() <= 1e-12 * np.abs(exact).max()
+
+
+def test_clamped_newton_converges_to_the_exact_step_on_a_buckling_cloth():
+    """The flat sheet's first steps at dt = 1/30 buckle (compressed springs, indefinite A):
+    the clamped matrix needs no shift and reaches implicit Euler's solution."""
+    scene = cloth(14, 14, structural=500.0, shear=50.0, bend=5.0, gamma=0.01)
+    system, state = scene.system, scene.state0
+    view = CompiledSystem(system, ForceModel(system))
+    exact = mslab.get_method("implicit_euler")
+    clamped = copy.copy(exact)
+    clamped.newton_hessian = "clamped"
+    shifts = []
+    real = linear.StageSolver.shifted_direction
+
+    def counted(self, r):
+        if self.compiled is not None and self.compiled.clamp:
+            shifts.append(1)
+        return real(self, r)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(linear.StageSolver, "shifted_direction", counted)
+        for _ in range(4):
+            a = exact.step(view, state, 1 / 30)
+            b = clamped.step(view, state, 1 / 30)
+            assert np.abs(a.x - b.x).max() < 1e-9
+            state = a
+    assert not shifts
+    with pytest.raises(ValueError, match="backend='numba'"):
+        clamped.step(system, state, 1 / 30)  # numpy evaluations: no compiled assembly
+
+
+def test_compiled_implicit_euler_equals_a_textbook_newton():
+    """A sparse cloth (CHOLMOD, kept factors, CG by the model) against Newton written here:
+    full matrix ``I - h M^-1 (h K + D)``, a dense solve every iteration, same tolerance."""
+    scene = cloth(12, 12, structural=500.0, shear=50.0, bend=5.0, gamma=0.01)
+    system, state, dt = scene.system, scene.state0, 1 / 60
+    assert 3 * system.n_particles > linear.DENSE_MAX
+    view = CompiledSystem(system, ForceModel(system))
+    method = mslab.get_method("implicit_euler")
+    minv = np.repeat(system.inv_mass, 3)
+    for _ in range(6):
+        v = state.v.copy()
+        for _ in range(30):
+            x = state.x + dt * v
+            g = v - state.v - dt * system.acceleration(x, v)
+            if np.abs(g).max() <= 1e-10 * (1 + np.abs(state.v).max()):
+                break
+            K, D = (M.toarray() for M in system.jacobians(x, v))
+            J = np.eye(x.size) - dt * minv[:, None] * (dt * K + D)
+            v = v + np.linalg.solve(J, -g.ravel()).reshape(v.shape)
+        new = method.step(view, state, dt)
+        assert np.abs(new.x - (state.x + dt * v)).max() < 1e-9
+        state = new
+
+
+def test_cg_model_refit_predicts_the_measured_rate():
+    """After a refit to a rate q at a change e, the model predicts log(rtol) / log(q) iterations
+    at e (the inverse of the rate formula), fewer at a smaller change, more at a larger one."""
+    scene = cloth(8, 8)
+    solver = linear.StageSolver(scene.system, 0.01, "reuse")
+    for rate in (0.1, 0.5, 0.65):
+        solver.refit(1e-3, rate)
+        expected = np.log(1e-3) / np.log(rate)
+        assert solver.predicted_cg_iterations(1e-3, 1e-3) == pytest.approx(expected, rel=1e-9)
+        assert solver.predicted_cg_iterations(1e-4, 1e-3) < solver.predicted_cg_iterations(1e-3, 1e-3) \
+            < solver.predicted_cg_iterations(1e-2, 1e-3)

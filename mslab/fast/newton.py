@@ -3,7 +3,7 @@
 An implicit step is a Newton iteration whose linear algebra (CHOLMOD, SuperLU, LAPACK) is
 compiled library code called from Python, between force and Jacobian evaluations. Its
 numba path is therefore not a loop of its own: it is the generic code of
-:mod:`mslab.integrators.solvers` and :mod:`mslab.integrators.linear` stepping a
+:mod:`mslab.integrators.newton.solvers` and :mod:`mslab.integrators.newton.linear` stepping a
 :class:`CompiledSystem`, a view of the scene's :class:`~mslab.system.System` whose forces
 come from the effects' compiled kernels (:class:`~mslab.fast.model.ForceModel`) and whose
 Jacobians come from the effects' ``compiled_jacobians`` (a compiled loop for springs, the
@@ -21,6 +21,7 @@ from mslab.system import System
 
 if TYPE_CHECKING:
     from mslab.fast.model import ForceModel
+    from mslab.fast.newton_assembly import CompiledNewtonMatrix
 
 
 class CompiledSystem(System):
@@ -55,9 +56,27 @@ class CompiledSystem(System):
         self.counters.n_force += 1
         return self.model.rhs(x, v)
 
+    def potential_energy(self, x: np.ndarray) -> float:
+        """Return the potential energy, the Hooke springs' part from a compiled loop."""
+        from mslab.fast.newton_assembly import hooke_energy
+
+        return hooke_energy(self, x)
+
+    def newton_assembly(self, c: float, free: np.ndarray, clamp: bool = False) -> CompiledNewtonMatrix:
+        """Return a :class:`~mslab.fast.newton_assembly.CompiledNewtonMatrix` of this system.
+
+        Newton's matrix ``A = M - c^2 K - c D`` on the free dofs, the springs' terms written
+        by a compiled loop straight into its kept pattern (asked for by
+        :class:`mslab.integrators.newton.linear.StageSolver`).
+        """
+        from mslab.fast.newton_assembly import CompiledNewtonMatrix
+
+        return CompiledNewtonMatrix(self, c, free, clamp)
+
     def warm(self) -> None:
         """Load (or compile) the force and Jacobian loops now, on a zero state (nothing counted)."""
         zero = np.zeros((self.n_particles, self.dim))
         self.model.rhs(zero, zero)
         for e in self.effects:
             e.compiled_jacobians(zero, zero)
+        self.potential_energy(zero)

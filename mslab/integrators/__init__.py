@@ -36,7 +36,7 @@ _FRAMEWORK = {"base"}
 _FOLDER_OF = {"coefficients": "families", "polynomials": "families", "runge_kutta": "families",
               "splitting": "families", "two_step": "families", "local_global": "families",
               "local_step": "families", "local_global_loop": "families", "linear": "newton",
-              "newton_matrix": "newton", "pcg": "newton",
+              "newton_matrix": "newton", "pcg": "newton", "factor": "newton", "coupled": "newton",
               "solvers": "newton", "tree_solve": "newton", "tree_kernels": "newton"}
 
 

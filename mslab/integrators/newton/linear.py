@@ -8,28 +8,12 @@ freedom (pinned particles keep ``V = v^``: their residual is zero from the start
 
 symmetric whenever ``K = df/dx`` and ``D = df/dv`` are (springs, gravity, drag, anchors: all of
 mslab's conservative and Rayleigh terms). ``A`` is the Hessian of the implicit Euler objective
-(:func:`mslab.integrators.solvers.objective`), so it is positive definite near a stable step and the step is a
-minimisation.
+(:func:`mslab.integrators.newton.solvers.objective`), so it is positive definite near a
+stable step and the step is a minimisation.
 
-**Factorisation** (:class:`Factor`). Up to :data:`DENSE_MAX` unknowns dense LAPACK
-(Cholesky, else LU). Above, CHOLMOD's supernodal sparse Cholesky through cvxopt (a
-maintained binding with wheels; scikit-sparse has none for this Python here), about 10x
-faster than SuperLU on a 100 x 100 cloth's matrix; it fails on a matrix that is not
-positive definite. Newton's matrices are assembled on a sparsity pattern kept between
-iterations and steps (:mod:`mslab.integrators.newton_matrix`), and CHOLMOD's symbolic
-analysis of that pattern is done once: every later factorisation is numeric only.
-Then (or without cvxopt) SuperLU in *symmetric mode*: a minimum-degree
-ordering of ``A + A^T`` applied to rows and columns alike and no row pivoting
-(``diag_pivot_thresh = 0``). That is an ``L D L^T`` factorisation written as ``L U``: the
-signs of ``U``'s diagonal are the inertia of ``A`` (Sylvester's law), so the factorisation
-itself tells whether and how ``A`` is indefinite.
-
-**Fallback when A is not positive definite** (a compressed spring has negative stiffness
-across it; hard compression makes ``A`` indefinite). The symmetric-mode factors are used
-only when they solve ``A`` to 1e-8 (no pivoting can lose accuracy on an indefinite matrix);
-otherwise SuperLU with partial pivoting (COLAMD ordering), a plain LU. Clamping the
-compressed springs' stiffness would make every matrix definite, but was measured to break
-Newton's convergence on the cloth at dt = 1/30: mslab keeps the exact Jacobian.
+**Factorisation**: :class:`~mslab.integrators.newton.factor.Factor` (dense LAPACK for small
+systems, CHOLMOD on the kept pattern, SuperLU's symmetric mode or partial pivoting for an
+indefinite matrix).
 
 **Reuse** (:class:`StageSolver`): a factorisation is kept between Newton iterations and
 steps. Each iteration takes (1) a *modified Newton* step with the kept factors (no
@@ -37,8 +21,12 @@ Jacobian, one solve) when the contraction measured on the last such step predict
 remaining modified steps cost less than a fresh factorisation (both counted in solves, with
 the fixed ratio :data:`FACTOR_OVER_SOLVE`: never a timing, so a run is reproducible),
 else (2) an inexact Newton step by conjugate gradients on the current ``A`` preconditioned
-with the kept factors (the middle ground: one Jacobian, a few solves), else (3) a fresh
-factorisation when CG is slow, meets negative curvature, or no definite factors are kept.
+with the kept factors, when a convergence model (:class:`StageSolver`) predicts that CG
+converges within its budget (no solve is spent on a CG that will fail), else (3) a fresh
+factorisation. On the compiled path (``backend="numba"``) ``A`` is written by compiled loops
+straight into the kept pattern (:mod:`mslab.fast.newton_assembly`), and the option
+``newton_hessian="clamped"`` drops every compressed spring's negative term (Choi & Ko 2002):
+``A`` is then always positive definite, the residual stays exact.
 
 Counted on ``system.counters``: ``n_factor`` (every factorisation), ``n_solve`` (every
 Newton direction), ``n_lin_iter`` (every CG iteration), ``n_jac`` (every Jacobian).
@@ -46,29 +34,21 @@ Newton direction), ``n_lin_iter`` (every CG iteration), ``n_jac`` (every Jacobia
 
 from __future__ import annotations
 
-import time
 import weakref
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mslab.integrators.newton.newton_matrix import (
-    FreePattern,
-    cholmod_module,
-    cholmod_solve,
-    is_symmetric,
-    one_shot_pattern,
-)
+from mslab.integrators.newton.factor import DENSE_MAX, Factor
+from mslab.integrators.newton.newton_matrix import FreePattern
 from mslab.integrators.newton.pcg import pcg
+
+__all__ = ["DENSE_MAX", "FACTOR_OVER_SOLVE", "POLICIES", "Factor", "StageSolver", "stage_solver"]
 
 if TYPE_CHECKING:  # scipy is imported on first use: `import mslab` stays cheap
     import scipy.sparse as sp
 
-    from mslab.system import Counters, System
-
-#: systems up to this many unknowns factor densely (LAPACK beats building scipy.sparse
-#: objects there)
-DENSE_MAX = 300
+    from mslab.system import System
 
 #: reuse policies: "fresh" factors every Newton matrix (the textbook method), "reuse" keeps
 #: factorisations (see StageSolver), "auto" reuses above DENSE_MAX unknowns only
@@ -82,125 +62,6 @@ POLICIES = ("auto", "fresh", "reuse")
 FACTOR_OVER_SOLVE = 12.0
 
 
-class Factor:
-    """A factorisation of one symmetric matrix ``A`` (scipy sparse, free dofs).
-
-    Attributes
-    ----------
-    A : sparse matrix, shape (n, n)
-        The factored matrix (kept for CG and for the accuracy check).
-    definite : bool
-        ``A`` is positive definite (all pivots of the symmetric factorisation > 0).
-    n_negative : int
-        Negative pivots: the number of negative eigenvalues of ``A`` (-1: not known).
-    kind : str
-        ``"cholesky"`` / ``"lu"`` (dense), ``"cholmod"``, ``"ldlt"`` (symmetric-mode SuperLU),
-        ``"lu_pivoted"``.
-    """
-
-    def __init__(self, A: sp.spmatrix | np.ndarray, counters: Counters, definite_only: bool = False,
-                 pattern: FreePattern | None = None):
-        start = time.perf_counter()
-        self.pattern = pattern  # A's kept pattern (A is then pattern.matrix(data)), or None
-        self._build(A, counters, definite_only)
-        self.seconds = time.perf_counter() - start  # wall time of the factorisation (lesson 04 shows it)
-
-    def _build(self, A: sp.spmatrix | np.ndarray, counters: Counters, definite_only: bool) -> None:
-        import scipy.linalg as sla
-        import scipy.sparse as sp
-        import scipy.sparse.linalg as spla
-
-        counters.n_factor += 1
-        self.A = A
-        self.n_negative = -1
-        n = A.shape[0]
-        symmetric = self.pattern.symmetric(A.data) if self.pattern is not None else is_symmetric(A)
-        if n <= DENSE_MAX:
-            dense = A.toarray() if sp.issparse(A) else np.asarray(A)
-            if not symmetric:  # friction: D = df/dv is not symmetric, Cholesky would read half of A
-                self._lu = sla.lu_factor(dense, check_finite=False)
-                self.kind, self.definite = "lu", False
-                return
-            try:
-                self._cho = sla.cho_factor(dense, lower=True, check_finite=False)
-                self.kind, self.definite, self.n_negative = "cholesky", True, 0
-            except sla.LinAlgError:
-                self._lu = sla.lu_factor(dense, check_finite=False)
-                self.kind, self.definite = "lu", False
-            return
-        if not symmetric:
-            self._splu = spla.splu(A.tocsc())  # partial pivoting: the only sound choice for a nonsymmetric A
-            self.kind, self.definite = "lu_pivoted", False
-            return
-        if self._cholmod(A):
-            return
-        if definite_only and cholmod_module() is not None:  # the caller shifts A instead
-            self.kind, self.definite = "none", False
-            return
-        A = A.tocsc()
-        try:
-            lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                           options={"SymmetricMode": True})
-        except RuntimeError:  # an exactly zero pivot: singular without pivoting
-            lu = None
-        if lu is not None and np.array_equal(lu.perm_r, lu.perm_c):
-            pivots = lu.U.diagonal()
-            self.n_negative = int(np.count_nonzero(pivots < 0))
-            self.definite = self.n_negative == 0 and bool(np.all(np.isfinite(pivots)))
-            self._splu, self.kind = lu, "ldlt"
-            if self.definite or self._accurate():
-                return
-        counters.n_factor += 1
-        self._splu = spla.splu(A)  # partial pivoting: the fallback for indefinite matrices
-        self.kind, self.definite = "lu_pivoted", False
-
-    def _cholmod(self, A: sp.spmatrix) -> bool:
-        """Factor ``A`` by CHOLMOD on its kept pattern (symbolic analysis reused); False if not definite.
-
-        Also False when cvxopt is not installed (SuperLU takes over).
-        """
-        if cholmod_module() is None:
-            return False
-        if self.pattern is None:  # a matrix met once: its own pattern
-            self._own_pattern, data = one_shot_pattern(A)
-            F = self._own_pattern.cholmod(self, data)
-        else:
-            F = self.pattern.cholmod(self, A.data)
-        if F is None:
-            return False
-        self._chol = F
-        self.kind, self.definite, self.n_negative = "cholmod", True, 0
-        return True
-
-    def _accurate(self) -> bool:
-        """Check that the unpivoted factors solve ``A`` to a relative 1e-8 (on a random right side)."""
-        b = np.random.default_rng(0).standard_normal(self.A.shape[0])
-        x = self._splu.solve(b)
-        return bool(np.all(np.isfinite(x)) and np.linalg.norm(self.A @ x - b) <= 1e-8 * np.linalg.norm(b))
-
-    solve_seconds: float = 0.0  # wall time of the last solve (lesson 04 shows it; no decision reads it)
-
-    def solve(self, b: np.ndarray) -> np.ndarray:
-        """``A^-1 b`` (timed)."""
-        start = time.perf_counter()
-        x = self._solve(b)
-        self.solve_seconds = time.perf_counter() - start
-        return x
-
-    def _solve(self, b: np.ndarray) -> np.ndarray:
-        import scipy.linalg as sla
-
-        if self.kind == "cholmod":
-            if (self.pattern or self._own_pattern).owner is not self:
-                raise RuntimeError("this CHOLMOD factorisation was overwritten by a later one on its pattern")
-            return cholmod_solve(self._chol, b)
-        if self.kind == "cholesky":
-            return sla.cho_solve(self._cho, b, check_finite=False)
-        if self.kind == "lu":
-            return sla.lu_solve(self._lu, b, check_finite=False)
-        return self._splu.solve(b)
-
-
 class StageSolver:
     """Newton directions for stages with coefficient ``c`` on one System, factorisations kept.
 
@@ -210,24 +71,43 @@ class StageSolver:
     c : float
         ``h * A_ii``.
     policy : {"auto", "fresh", "reuse"}
+    clamp : bool
+        Newton's matrix with every spring's compressive term dropped (positive definite;
+        the compiled path only, see :mod:`mslab.fast.newton_assembly`).
 
     ``direction(point, r, jacobian)`` returns the Newton direction ``du`` (all dofs) for the
     residual ``r`` at ``point = (X, V)``; the solver picks modified Newton, CG with the kept
     factors, or a fresh factorisation (module docstring) and records ``row_sum`` (for the
     round-off floor of the tolerance).
+
+    **When CG is tried** (a convergence model, not a trial): with kept factors of ``A_f``,
+    CG on ``A`` converges at the rate ``q = delta / (1 + sqrt(1 - delta^2))`` per iteration
+    when the spectrum of ``A_f^-1 A`` lies within ``1 +- delta`` (the classical bound,
+    ``kappa = (1 + delta) / (1 - delta)``). The solver measures the relative change
+    ``e = |A - A_f|_F / |A_f|_F`` (one pass over ``A``'s values) and models
+    ``delta = beta e / (1 + beta e)``: linear for small changes, saturating below 1 as
+    measured on the cloth (CG's rate stays near 0.65 for changes from 1e-2 to 2e-2: a few
+    outlying eigenvalues, which CG removes one per iteration). ``beta`` starts at
+    :attr:`cg_rate_per_change` and is re-fitted to the rate of every CG run
+    (``(|r_end| / |b|)^(1 / iterations)``), one ``beta`` for factors of the same stage and
+    one for factors of an earlier step (whose change spans a whole step: measured slower).
+    CG runs only when ``log(rtol) / log(q)`` iterations fit in :meth:`cg_max_iter`; else the
+    matrix is factored at once. The same bound decides whether factors are reused in a
+    later step: they are while the predicted CG converges within the budget.
     """
 
-    #: CG stops at this relative residual (an inexact Newton step)
+    #: CG stops at this relative residual (an inexact Newton step) unless the caller gives one
     cg_rtol: float = 1e-3
+    #: the loosest relative residual a caller's forcing term asks of CG
+    cg_rtol_max: float = 0.1
     #: CG gives up (and the matrix is factored afresh) after as many iterations as half a
     #: factorisation costs in solves (measured), within these bounds
     cg_iter_bounds: tuple = (4, 60)
-    #: after CG preconditioned by an earlier stage's factors fails, so many stages start
-    #: without trying it (on a cloth at dt = 1/60 it failed at every stage start: 17 % of the
-    #: step's time measured at 100 x 100); a success keeps it on
-    stale_cg_skip: int = 8
+    #: the first ``beta`` of the convergence model (refitted by every CG run): measured on the
+    #: 70 x 70 cloth at dt = 1/60 (rates 0.08, 0.3, 0.65 at changes 3e-4, 1e-3, 2e-2)
+    cg_rate_per_change: float = 600.0
 
-    def __init__(self, system: System, c: float, policy: str = "auto"):
+    def __init__(self, system: System, c: float, policy: str = "auto", clamp: bool = False):
         if policy not in POLICIES:
             raise ValueError(f"linear solver policy must be one of {POLICIES}, got {policy!r}")
         self.system = system
@@ -240,31 +120,74 @@ class StageSolver:
         self.reuse = policy == "reuse" or (policy == "auto" and n_free > DENSE_MAX)
         self.factor: Factor | None = None
         self.rho = np.inf  # contraction of the last modified (or freshly factored) Newton step
-        self.cg_ok = True  # the last CG attempt with the kept factors converged
+        # the model's beta for factors of this stage (True) and of an earlier one (False)
+        self.beta = {True: self.cg_rate_per_change, False: self.cg_rate_per_change}
         self.stage = 0  # counts the stages solved (see start_stage)
         self.row_sum = 0.0
         self.last = ""  # how the last direction was found: "modified", "cg" or "factor"
         self.mu = 4.0  # four times the next shift to try when A is indefinite
-        self.stale_skip = 0  # stages left to start without CG on an earlier stage's factors
+        make = getattr(system, "newton_assembly", None)  # the compiled path's assembly
+        if clamp and make is None:
+            raise ValueError("the clamped Newton matrix is assembled by compiled loops: use backend='numba'")
+        self.compiled = make(self.c, self.free, clamp) if make is not None else None
+        self.symmetric: bool | None = None  # A is symmetric whatever the state (None: not known)
 
     def _assemble(self, point: tuple, r: np.ndarray):
-        """Return ``A`` at ``point`` on the kept pattern (recorded again when the Jacobians' changes)."""
+        """Return ``A`` at ``point`` on the kept pattern (recorded again when the Jacobians' changes).
+
+        Also sets :attr:`row_sum`, ``max_i m_i^-1 sum_j |A_ij - M_ij|`` (a bound on the
+        round-off of the residual: the floor of Newton's tolerance).
+        """
+        if self.compiled is not None:
+            A, self.row_sum = self.compiled.assemble(point[0], point[1])
+            self.pattern = self.compiled.pattern
+            self.symmetric = True if self.compiled.symmetric else None
+            return A
         stiff, damp = self.system.jacobian_terms(point[0], point[1])
         parts = stiff + damp  # none: no force depends on the state, A = M
         if self.pattern is None or not self.pattern.matches(parts):
             self.pattern = FreePattern(parts, self.free)
         c = self.c
         lin = np.concatenate([np.zeros(0)] + [p.data * (c * c) for p in stiff] + [p.data * c for p in damp])
-        # row sums of the terms' |c M^-1 (c K_e + D_e)| (a bound on the round-off of the residual):
-        # the floor of Newton's tolerance
-        row = np.bincount(self.pattern.rows_in, np.abs(lin), self.free.size) * self.inv_mass_dofs
+        mass = self.mass_dofs[self.free]
+        A = self.pattern.assemble(lin, mass)
+        off = np.abs(A.data)
+        off[self.pattern.diagonal] = np.abs(A.data[self.pattern.diagonal] - mass)
+        row = np.add.reduceat(off, A.indptr[:-1]) / mass  # every row holds its diagonal: none is empty
         self.row_sum = float(row.max()) if row.size else 0.0
-        return self.pattern.assemble(lin, self.mass_dofs[self.free])
+        return A
 
     def cg_max_iter(self) -> int:
         """Return the CG iterations worth half a fresh factorisation (:data:`FACTOR_OVER_SOLVE`)."""
         low, high = self.cg_iter_bounds
         return int(np.clip(0.5 * FACTOR_OVER_SOLVE, low, high))
+
+    def change(self, A: sp.spmatrix) -> float:
+        """Return ``|A - A_f|_F / |A_f|_F`` against the kept factors' matrix (inf: another pattern)."""
+        f = self.factor
+        if f is None or f.pattern is not self.pattern or self.pattern is None:
+            return np.inf
+        if self.compiled is not None:
+            return self.compiled.change(A.data, f.A.data)
+        return float(np.linalg.norm(A.data - f.A.data) / np.linalg.norm(f.A.data))
+
+    def predicted_cg_iterations(self, change: float, rtol: float) -> float:
+        """Return the CG iterations the model (class docstring) predicts for a relative ``change``."""
+        x = self.beta[self._same_stage()] * change
+        delta = x / (1.0 + x)  # the spectrum of A_f^-1 A within 1 +- delta
+        q = delta / (1.0 + np.sqrt(1.0 - delta * delta))
+        return 1.0 if q <= 0.0 else max(1.0, float(np.log(rtol) / np.log(q)))
+
+    def refit(self, change: float, rate: float) -> None:
+        """Fit ``beta`` to CG's measured ``rate`` per iteration at a relative ``change``."""
+        if change <= 0.0:
+            return
+        rate = min(rate, 0.999)
+        delta = 2.0 * rate / (1.0 + rate * rate)  # the inverse of the rate's formula
+        self.beta[self._same_stage()] = delta / ((1.0 - delta) * change)
+
+    def _same_stage(self) -> bool:
+        return getattr(self.factor, "stage", None) == self.stage
 
     def rhs(self, r: np.ndarray) -> np.ndarray:
         """``-M r`` on the free dofs (the negative gradient of the objective)."""
@@ -277,21 +200,23 @@ class StageSolver:
         return du
 
     def direction(self, point: tuple, r: np.ndarray, exact: bool = False, decades: float = 10.0,
-                  definite_only: bool = False) -> np.ndarray | None:
+                  definite_only: bool = False, rtol: float | None = None) -> np.ndarray | None:
         """Return the Newton direction for residual ``r`` (flat, all dofs) at ``point``.
 
         ``exact``: no modified Newton step (the current Jacobian is used). ``decades``: how
         many powers of ten the residual must still fall (for the cost model below).
         ``definite_only``: return None, instead of an indefinite factorisation's direction,
-        when CHOLMOD finds ``A`` not positive definite (the caller shifts ``A``).
+        when CHOLMOD finds ``A`` not positive definite (the caller shifts ``A``). ``rtol``:
+        the relative residual CG stops at (the caller's forcing term; default :attr:`cg_rtol`).
 
         With kept factors, a modified Newton step is taken when the predicted cost of the
         remaining modified steps (``decades / log10(1 / rho)`` solves at the last measured
         contraction ``rho``) is below that of a fresh factorisation plus three solves (a
         factorisation counted as :data:`FACTOR_OVER_SOLVE` solves: a fixed ratio, so the same
-        run always takes the same steps and counts); else conjugate gradients on the current matrix
-        preconditioned by the kept factors (while CG keeps succeeding; see
-        :attr:`stale_cg_skip`); else a fresh factorisation.
+        run always takes the same steps and counts); else conjugate gradients on the current
+        matrix preconditioned by the kept factors when the convergence model (class
+        docstring) predicts that CG converges within :meth:`cg_max_iter` iterations; else a
+        fresh factorisation.
         """
         c = self.system.counters
         b = self.rhs(r)
@@ -305,19 +230,18 @@ class StageSolver:
                 self.last = "modified"
                 return self.expand(f.solve(b), r)
         A = self._assemble(point, r)
-        # CG with factors from this stage, or from earlier steps while that keeps working
-        fresh = getattr(f, "stage", None) == self.stage
-        stale_ok = self.cg_ok and not self.stale_skip
-        if self.reuse and f is not None and f.definite and (fresh or exact or stale_ok):
-            x, its = pcg(A, b, f, self.cg_rtol if not exact else 1e-12, self.cg_max_iter())
-            c.n_lin_iter += its
-            self.cg_ok = x is not None
-            if not (fresh or exact):
-                self.stale_skip = 0 if self.cg_ok else self.stale_cg_skip
-            if x is not None:
-                self.last = "cg"
-                return self.expand(x, r)
-        self.factor = Factor(A, c, definite_only, pattern=self.pattern)
+        if self.reuse and f is not None and f.definite:
+            rtol = 1e-12 if exact else (self.cg_rtol if rtol is None else max(rtol, 1e-12))
+            change = self.change(A)
+            if self.predicted_cg_iterations(change, rtol) <= self.cg_max_iter():
+                x, its, ratio = pcg(A, b, f, rtol, self.cg_max_iter())
+                c.n_lin_iter += its
+                # refit the model to the rate measured (1: negative curvature)
+                self.refit(change, ratio ** (1.0 / its) if its and ratio < 1.0 else 1.0)
+                if x is not None:
+                    self.last = "cg"
+                    return self.expand(x, r)
+        self.factor = Factor(A, c, definite_only, pattern=self.pattern, symmetric=self.symmetric)
         self.factor.stage = self.stage
         self.last = "factor"
         if self.factor.kind == "none":
@@ -339,7 +263,7 @@ class StageSolver:
                 data = f.A.data.copy()
                 data[f.pattern.diagonal] += mu * mass
                 shifted = Factor(f.pattern.matrix(data), self.system.counters, definite_only=True,
-                                 pattern=f.pattern)
+                                 pattern=f.pattern, symmetric=self.symmetric)
             else:
                 import scipy.sparse as sp
 
@@ -357,7 +281,6 @@ class StageSolver:
         """Start a new stage equation: the last contraction says nothing about modified steps here."""
         self.stage += 1
         self.rho = np.inf
-        self.stale_skip = max(0, self.stale_skip - 1)
 
     def contracted(self, ratio: float) -> None:
         """Record the residual ratio ``|r_new| / |r_old|`` of the last full step (inf: damped).
@@ -372,12 +295,12 @@ class StageSolver:
 _CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def stage_solver(system: System, c: float, policy: str = "auto") -> StageSolver:
-    """Return the kept :class:`StageSolver` of ``system`` for coefficient ``c`` and ``policy``."""
+def stage_solver(system: System, c: float, policy: str = "auto", clamp: bool = False) -> StageSolver:
+    """Return the kept :class:`StageSolver` of ``system`` for coefficient ``c``, ``policy`` and ``clamp``."""
     per_system = _CACHE.setdefault(system, {})
-    key = (float(c), policy)
+    key = (float(c), policy, bool(clamp))
     if key not in per_system:
         if len(per_system) > 8:
             per_system.clear()
-        per_system[key] = StageSolver(system, c, policy)
+        per_system[key] = StageSolver(system, c, policy, clamp)
     return per_system[key]

@@ -1,7 +1,7 @@
 """Newton's matrix on the free degrees of freedom, assembled on a sparsity pattern kept between calls.
 
 Newton's matrix of an implicit Euler-like stage, scaled by the masses and restricted to the
-free dofs, is ``A = M - c^2 K - c D`` (see :mod:`mslab.integrators.linear`). Its sparsity
+free dofs, is ``A = M - c^2 K - c D`` (see :mod:`mslab.integrators.newton.linear`). Its sparsity
 pattern is that of the force Jacobians, which stays the same from one Newton iteration
 and one step to the next while the scene's contacts do not change. :class:`FreePattern`
 computes, once per pattern, where every entry of ``c^2 K + c D`` lands in ``A`` (rows and
@@ -67,6 +67,7 @@ class FreePattern:
         keys = np.concatenate([new[rows[keep]].astype(np.int64) * m + new[cols[keep]],
                                np.arange(m, dtype=np.int64) * (m + 1)])  # + the mass diagonal
         unique, slot = np.unique(keys, return_inverse=True)
+        self.keys = unique  # row * size + column of every entry of A, sorted (CSR order)
         self.slot = slot[: self.source.size]  # slot in A.data of each kept entry
         self.diagonal = slot[self.source.size:]  # slot of A's diagonal entries
         r, c = unique // m, unique % m

@@ -8,14 +8,15 @@ Both find the stage velocities ``V_i`` of ``X_i = x_n + h sum_j A_ij V_j``,
   (:func:`newton_stage`): stage ``i`` solves ``g(V) = V - v^ - h g_i a(x^ + h g_i V, V) = 0``
   (``g_i = A_ii``; ``x^, v^`` collect the earlier stages) with the matrix
   ``I - h g_i M^-1 (h g_i K + D)``, solved in its symmetric mass-scaled form on the free
-  dofs with kept factorisations (:mod:`mslab.integrators.linear`). When the forces derive
+  dofs with kept factorisations (:mod:`mslab.integrators.newton.linear`). When the forces derive
   from implicit Euler's objective, a line search on that objective globalises Newton (an
   undamped cloth at dt = 1/30 converges); otherwise full Newton steps first (stiff springs
   need them), then after ``full_steps`` iterations a backtracking line search halves the
   step until the residual falls (a contact switching on and off makes the iterates cycle
   otherwise). A full tableau couples all stages in one system with blocks
   ``delta_ik I - h sum_j A_ij M^-1 (h K_j A_jk + D_j delta_jk)``, factored afresh per
-  iteration (dense LAPACK, or SuperLU above ``DENSE_MAX`` unknowns).
+  iteration (dense LAPACK, or SuperLU above ``DENSE_MAX`` unknowns;
+  :mod:`mslab.integrators.newton.coupled`).
 * **Fixed point** iterates ``Y <- y_n + h A F(Y)`` from ``Y = y_n``; a contraction only
   while ``h L |A| < 1``. Growing iterates stop the step with a message naming Newton.
 
@@ -34,7 +35,6 @@ import numpy as np
 from mslab.errors import StepFailure
 
 if TYPE_CHECKING:
-    import scipy.sparse as sp
 
     from mslab.integrators.newton.linear import StageSolver
     from mslab.state import State
@@ -53,10 +53,6 @@ class ImplicitRK(Protocol):
     diagonally_implicit: bool
     max_iter: int
     rtol: float
-
-#: systems up to this many unknowns solve Newton's linear system densely (LAPACK beats
-#: building scipy.sparse objects there); larger ones use a sparse direct solve
-DENSE_MAX = 300
 
 
 def _scale(*arrays: np.ndarray) -> float:
@@ -82,65 +78,14 @@ def _backtrack(residual: Callable, u: np.ndarray, du: np.ndarray, r: np.ndarray,
         alpha *= 0.5
 
 
-def _newton(system: System, u0: np.ndarray, residual: Callable, solve: Callable, tol: float, max_iter: int,
-            full_steps: int):
-    """Newton's iteration ``u <- u + alpha du`` with ``J du = -r``.
-
-    ``residual(u) -> (r, point)``; ``solve(point, r) -> (du, floor)`` assembles and solves
-    the linear system at ``point`` and returns a round-off floor for the tolerance.
-    Returns ``(u, point)`` at convergence; raises StepFailure otherwise.
-    """
-    c = system.counters
-    u = u0
-    r, point = residual(u)
-    for it in range(1, max_iter + 1):
-        if not np.all(np.isfinite(r)):
-            break
-        if float(np.max(np.abs(r))) <= tol:
-            c.n_iter += it - 1
-            return u, point
-        du, floor = solve(point, r)
-        c.n_solve += 1
-        tol = max(tol, floor)
-        alpha, trial, trial_point = _backtrack(residual, u, du, r, full_steps=it <= full_steps)
-        u = u + alpha * du
-        r, point = trial, trial_point
-    c.n_iter += it
-    raise StepFailure(f"Newton iteration did not converge in {max_iter} iterations "
-                      f"(residual tolerance {tol:.2e}); try a smaller dt")
-
-
-def _linear_solve(S: sp.spmatrix, residual: np.ndarray) -> tuple[np.ndarray, float]:
-    """Solve ``(I - S) du = -residual`` (S sparse); also return ``max_i sum_j |S_ij|``."""
-    if residual.size <= DENSE_MAX:
-        S = S.toarray()
-        row_sum = float(np.abs(S).sum(axis=1).max()) if S.size else 0.0
-        J = -S
-        J[np.diag_indices_from(J)] += 1.0
-        return np.linalg.solve(J, -residual), row_sum
-    import scipy.sparse as sp
-    import scipy.sparse.linalg as spla
-
-    S = S.tocsr()
-    row_sum = float(abs(S).sum(axis=1).max()) if S.nnz else 0.0
-    J = (sp.identity(residual.size, format="csr") - S).tocsc()
-    return spla.spsolve(J, -residual), row_sum
-
-
-def _scaled(system: System, lin: sp.spmatrix, factor: float):
-    """``factor * M^-1 lin`` (rows scaled by the inverse masses; 0 on pinned particles)."""
-    lin = lin.tocsr(copy=True)
-    minv = np.repeat(system.inv_mass, system.dim)
-    lin.data *= np.repeat(factor * minv, np.diff(lin.indptr))
-    return lin
-
-
 def newton_stages(method: ImplicitRK, system: System, state: State,
                   dt: float) -> tuple[list[np.ndarray], list[np.ndarray], list[float]]:
     """Stage velocities, accelerations and powers of an implicit tableau by Newton's method."""
     if method.diagonally_implicit:
         return _newton_dirk(method, system, state, dt)
-    return _newton_coupled(method, system, state, dt)
+    from mslab.integrators.newton.coupled import newton_coupled
+
+    return newton_coupled(method, system, state, dt)
 
 
 def _newton_dirk(method: ImplicitRK, system: System, state: State, dt: float):
@@ -160,7 +105,8 @@ def _newton_dirk(method: ImplicitRK, system: System, state: State, dt: float):
             continue
         X, V, a, p = newton_stage(system, xh, vh, dt * g, tol0, method.max_iter,
                                   policy=getattr(method, "linear_solver", "auto"),
-                                  linearised=getattr(method, "linearised", False))
+                                  linearised=getattr(method, "linearised", False),
+                                  hessian=getattr(method, "newton_hessian", "exact"))
         vs.append(V)
         accs.append(a)
         powers.append(p)
@@ -168,24 +114,31 @@ def _newton_dirk(method: ImplicitRK, system: System, state: State, dt: float):
 
 
 def newton_stage(system: System, xh: np.ndarray, vh: np.ndarray, c: float, tol: float, max_iter: int,
-                 policy: str = "auto", linearised: bool = False,
-                 full_steps: int = 4) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+                 policy: str = "auto", linearised: bool = False, full_steps: int = 4,
+                 hessian: str = "exact") -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """Solve one implicit Euler-like stage ``V - v^ - c a(x^ + c V, V) = 0`` by Newton's method.
 
-    Directions from :class:`mslab.integrators.linear.StageSolver` (symmetric free-dof matrix,
-    factorisations kept and reused under ``policy``). Globalisation: when the forces derive
-    from implicit Euler's objective (:func:`objective`; springs,
-    gravity, anchors, linear drag) a backtracking (Armijo) line search on that objective,
-    with a shifted positive definite matrix when the Newton direction does not descend;
-    otherwise full steps for ``full_steps`` iterations, then backtracking on the residual.
+    Directions from :class:`mslab.integrators.newton.linear.StageSolver` (factorisations kept
+    under ``policy``). Globalisation (:func:`_search`): when the forces derive from implicit
+    Euler's objective (:func:`objective`) an Armijo line search on it (a shifted definite
+    matrix when Newton's direction does not descend); otherwise full steps for ``full_steps``
+    iterations, then backtracking on the residual.
     ``linearised``: one Newton step from ``V = v^`` and no convergence test (Baraff-Witkin).
+    ``hessian``: ``"exact"`` (default) or ``"clamped"``, Newton's matrix with each spring's
+    compressive term dropped (Choi & Ko 2002): positive definite, so no shifted
+    factorisations when the cloth buckles, at the price of a linear convergence where
+    springs are compressed; the same solution (the residual is exact). Compiled path only
+    (method attribute ``newton_hessian``). Inexact steps (CG on kept factors) solve to the
+    forcing term ``eta = min(cg_rtol_max, 0.9 (|r_k| / |r_k-1|)^2)`` (Eisenstat-Walker).
 
     Returns ``(X, V, a, power)`` at the solution; raises StepFailure saying why it failed.
     """
     from mslab.integrators.newton import linear
 
     counters = system.counters
-    solver = linear.stage_solver(system, c, policy)
+    if hessian not in ("exact", "clamped"):
+        raise ValueError(f"newton_hessian must be 'exact' or 'clamped', got {hessian!r}")
+    solver = linear.stage_solver(system, c, policy, clamp=hessian == "clamped")
     var = variational(system)
 
     def residual(V: np.ndarray):
@@ -196,15 +149,14 @@ def newton_stage(system: System, xh: np.ndarray, vh: np.ndarray, c: float, tol: 
     def phi(V: np.ndarray):
         return objective(system, xh, vh, c, V)
 
-    if solver.reuse:  # modified Newton converges linearly: allow it more (cheap) iterations
-        max_iter *= 2
-    if var:  # the line search makes progress every iteration; buckling springs need tens of them
-        max_iter *= 4
+    # modified Newton converges linearly: more (cheap) iterations; the line search makes progress
+    # every iteration, buckling springs need tens of them
+    max_iter *= (2 if solver.reuse else 1) * (4 if var else 1)
     solver.start_stage()
     V = vh.copy()
     r, point = residual(V)
     value = phi(V) if var and not linearised else 0.0
-    floor, why = 0.0, ""
+    floor, why, previous = 0.0, "", np.inf
     for it in range(1, max_iter + 1):
         rnorm = float(np.max(np.abs(r))) if r.size else 0.0
         if not np.isfinite(rnorm):
@@ -214,29 +166,26 @@ def newton_stage(system: System, xh: np.ndarray, vh: np.ndarray, c: float, tol: 
             counters.n_iter += it - 1
             return point
         decades = float(np.log10(rnorm / max(tol, floor))) + 1.0
+        forcing = solver.cg_rtol_max if previous == np.inf else min(solver.cg_rtol_max,
+                                                                    0.9 * (rnorm / previous) ** 2)
+        previous = rnorm
         du = solver.direction(point, r.ravel(), exact=linearised, decades=decades,
-                                definite_only=var and not linearised)
-        if du is None:  # CHOLMOD: A is not positive definite
-            du = solver.shifted_direction(r.ravel())
-        du = du.reshape(V.shape)
-        X = point[0]
-        floor = 8.0 * np.finfo(float).eps * solver.row_sum / c * _scale(X) if solver.row_sum > 0 else 0.0
+                              definite_only=var and not linearised, rtol=forcing)
+        # None: CHOLMOD found A not positive definite
+        du = (solver.shifted_direction(r.ravel()) if du is None else du).reshape(V.shape)
+        floor = 8.0 * np.finfo(float).eps * solver.row_sum / c * _scale(point[0]) if solver.row_sum else 0.0
         if linearised:
             counters.n_iter += 1
             return residual(V + du)[1]
-        if var:
-            du, slope = _descent(solver, point, r, du)
-            try:
-                alpha, trial, trial_point, value = _armijo(residual, phi, V, du, value, slope, rnorm)
-            except StepFailure as failure:
-                counters.n_iter += it
-                raise StepFailure(f"Newton's line search found no decrease of implicit Euler's objective at "
-                                  f"iteration {it} (residual {rnorm:.2e}, tolerance {max(tol, floor):.2e}); "
-                                  f"try a smaller dt") from failure
-            tnorm = float(np.max(np.abs(trial)))
-        else:
-            alpha, trial, trial_point = _backtrack(residual, V, du, r, full_steps=it <= full_steps)
-            tnorm = float(np.max(np.abs(trial)))
+        try:
+            alpha, du, trial, trial_point, value = _search(solver, residual, phi if var else None, point, V,
+                                                           r, du, value, it <= full_steps)
+        except StepFailure as failure:
+            counters.n_iter += it
+            raise StepFailure(f"Newton's line search found no decrease of implicit Euler's objective at "
+                              f"iteration {it} (residual {rnorm:.2e}, tolerance {max(tol, floor):.2e}); "
+                              f"try a smaller dt") from failure
+        tnorm = float(np.max(np.abs(trial)))
         solver.contracted(tnorm / rnorm if alpha == 1.0 and rnorm > 0 else np.inf)
         V = V + alpha * du
         r, point = trial, trial_point
@@ -244,6 +193,22 @@ def newton_stage(system: System, xh: np.ndarray, vh: np.ndarray, c: float, tol: 
     counters.n_iter += it
     raise StepFailure(f"Newton iteration did not converge in {max_iter} iterations: {why} "
                       f"(tolerance {max(tol, floor):.2e}); try a smaller dt")
+
+
+def _search(solver: StageSolver, residual: Callable, phi: Callable | None, point: tuple, V: np.ndarray,
+            r: np.ndarray, du: np.ndarray, value: float, full_steps: bool) -> tuple:
+    """Return ``(alpha, du, residual, point, objective)`` at the accepted step ``V + alpha du``.
+
+    With the objective ``phi``: a descent direction (:func:`_descent`, which may replace
+    ``du``) and Armijo's backtracking on ``phi``; without: :func:`_backtrack` on the
+    residual (``value`` returned unchanged).
+    """
+    if phi is None:
+        alpha, trial, trial_point = _backtrack(residual, V, du, r, full_steps=full_steps)
+        return alpha, du, trial, trial_point, value
+    du, slope = _descent(solver, point, r, du)
+    alpha, trial, trial_point, value = _armijo(residual, phi, V, du, value, slope, float(np.max(np.abs(r))))
+    return alpha, du, trial, trial_point, value
 
 
 def _descent(solver: StageSolver, point: tuple, r: np.ndarray,
@@ -286,47 +251,6 @@ def _armijo(residual: Callable, phi: Callable, V: np.ndarray, du: np.ndarray, va
         alpha *= 0.5
         if alpha < 1e-10:
             raise StepFailure("no decrease")
-
-
-def _newton_coupled(method: ImplicitRK, system: System, state: State, dt: float):
-    import scipy.sparse as sp
-
-    A = method.A
-    s = A.shape[0]
-    n = state.v.size
-    shape = state.v.shape
-    tol = method.rtol * _scale(state.v)
-
-    def points(U: np.ndarray):
-        V = U.reshape((s,) + shape)
-        X = state.x[None] + dt * np.einsum("ij,jnd->ind", A, V)
-        return X, V
-
-    def residual(U: np.ndarray):
-        X, V = points(U)
-        evals = [system.rhs(X[i], V[i]) for i in range(s)]
-        a = np.stack([e[0] for e in evals])
-        G = V - state.v[None] - dt * np.einsum("ij,jnd->ind", A, a)
-        return G.ravel(), (X, V, a, [e[1] for e in evals])
-
-    def solve(point: tuple, r: np.ndarray):
-        X, V, _, _ = point
-        blocks_K, blocks_D = [], []
-        for i in range(s):
-            K, D = system.jacobians(X[i], V[i])
-            blocks_K.append(_scaled(system, K, 1.0))
-            blocks_D.append(_scaled(system, D, 1.0) if D is not None else sp.csr_matrix((n, n)))
-        Ak = sp.kron(sp.csr_matrix(A), sp.identity(n), format="csr")
-        S = dt * dt * (Ak @ sp.block_diag(blocks_K, format="csr") @ Ak) \
-            + dt * (Ak @ sp.block_diag(blocks_D, format="csr"))
-        du, row_sum = _linear_solve(S, r)
-        system.counters.n_factor += 1
-        floor = 8.0 * np.finfo(float).eps * row_sum / dt * _scale(X) if row_sum > 0 else 0.0
-        return du, floor
-
-    U0 = np.tile(state.v.ravel(), s)
-    _, (X, V, a, p) = _newton(system, U0, residual, solve, tol, method.max_iter, full_steps=4)
-    return list(V), list(a), p
 
 
 def variational(system: System) -> bool:
