@@ -1,10 +1,10 @@
 """Newton's matrix assembled by compiled loops straight into its kept pattern (the compiled path).
 
-``A = M - c^2 K - c D`` on the free dofs (:mod:`mslab.integrators.linear`). The numpy path
+``A = M - c^2 K - c D`` on the free dofs (:mod:`mslab.integrators.newton.linear`). The numpy path
 evaluates every effect's Jacobian as a sparse matrix and sums the terms into the kept
-pattern (:class:`~mslab.integrators.newton_matrix.FreePattern`, one ``np.bincount``). Here,
+pattern (:class:`~mslab.integrators.newton.newton_matrix.FreePattern`, one ``np.bincount``). Here,
 on the compiled path (:meth:`mslab.fast.newton.CompiledSystem.newton_assembly`, which
-:class:`~mslab.integrators.linear.StageSolver` asks for), the terms that dominate a cloth are
+:class:`~mslab.integrators.newton.linear.StageSolver` asks for), the terms that dominate a cloth are
 written into ``A``'s values directly:
 
 * effects that declare undamped Hooke springs (capability ``hooke_springs``, not velocity
@@ -146,7 +146,6 @@ class CompiledNewtonMatrix:
             self._kernel(x, s.i, s.j, s.stiffness, s.rest_length, c2, int(self.clamp), slot, data)
         row_sum = self._row_sums(p.indptr, data, p.diagonal, self.mass_free, self.inv_mass_free, self._row)
         return p.matrix(data), float(row_sum)
-
 
     def change(self, data: np.ndarray, old: np.ndarray) -> float:
         """Return ``|A - A_old|_F / |A_old|_F`` for two matrices' values on the kept pattern."""
