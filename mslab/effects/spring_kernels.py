@@ -237,6 +237,19 @@ def lane_sum(values: np.ndarray) -> float:
     return ((s0 + s1) + (s2 + s3)) + ((s4 + s5) + (s6 + s7))
 
 
+def unit_vector(x: np.ndarray, a: int, b: int, u: np.ndarray) -> float:
+    """Write ``u = (x_a - x_b) / l`` and return ``1 / l`` (``u = 0`` and 0 for a zero-length spring)."""
+    length2 = 0.0
+    for c in range(x.shape[1]):
+        u[c] = x[a, c] - x[b, c]
+        length2 += u[c] * u[c]
+    length = np.sqrt(length2)
+    inv_l = 1.0 / length if length > 0.0 else 0.0
+    for c in range(x.shape[1]):
+        u[c] *= inv_l
+    return inv_l
+
+
 def spring_jacobian_kernel(x: np.ndarray, v: np.ndarray, i: np.ndarray, j: np.ndarray,
                            stiffness: np.ndarray, rest_length: np.ndarray, damping: np.ndarray,
                            damped: int, bx: np.ndarray, bv: np.ndarray) -> None:
@@ -252,14 +265,7 @@ def spring_jacobian_kernel(x: np.ndarray, v: np.ndarray, i: np.ndarray, j: np.nd
     for q in range(i.shape[0]):
         a = i[q]
         b = j[q]
-        length2 = 0.0
-        for c in range(dim):
-            u[c] = x[a, c] - x[b, c]
-            length2 += u[c] * u[c]
-        length = np.sqrt(length2)
-        inv_l = 1.0 / length if length > 0.0 else 0.0
-        for c in range(dim):
-            u[c] *= inv_l
+        inv_l = unit_vector(x, a, b, u)
         ratio = rest_length[q] * inv_l
         k = stiffness[q]
         rate = 0.0

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from mslab.effects.spring_kernels import unit_vector
+
 
 def spring_newton_kernel(x: np.ndarray, i: np.ndarray, j: np.ndarray, stiffness: np.ndarray,
                          rest_length: np.ndarray, c2: float, clamp: int, slot: np.ndarray,
@@ -30,16 +32,7 @@ def spring_newton_kernel(x: np.ndarray, i: np.ndarray, j: np.ndarray, stiffness:
     dim = x.shape[1]
     u = np.empty(dim)
     for q in range(i.shape[0]):
-        a = i[q]
-        b = j[q]
-        length2 = 0.0
-        for c in range(dim):
-            u[c] = x[a, c] - x[b, c]
-            length2 += u[c] * u[c]
-        length = np.sqrt(length2)
-        inv_l = 1.0 / length if length > 0.0 else 0.0
-        for c in range(dim):
-            u[c] *= inv_l
+        inv_l = unit_vector(x, i[q], j[q], u)
         t = 1.0 - rest_length[q] * inv_l
         if clamp and t < 0.0:
             t = 0.0
