@@ -111,7 +111,8 @@ def stepper(system: System, integrator: Integrator, backend: str | None = None, 
     """Return a compiled :class:`~mslab.fast.runner.Stepper` for this run, or None for the numpy loop.
 
     ``backend="numba"`` raises ValueError when the compiled loop does not apply; ``"auto"``
-    with ``n_steps`` and ``state0`` also weighs the run's length (:func:`worth_compiling`).
+    with ``n_steps`` and ``state0`` also weighs the run's length (:func:`worth_compiling`),
+    except for a method that steps only compiled (``compiled_only``, e.g. the clamped Newton matrix).
     """
     name = check_backend(backend)
     if name == "numpy":
@@ -122,8 +123,8 @@ def stepper(system: System, integrator: Integrator, backend: str | None = None, 
             raise ValueError(f"backend 'numba': {reason}; use backend='auto' or 'numpy'")
         return None
     try:
-        if name == "auto" and n_steps is not None and not worth_compiling(system, integrator, n_steps,
-                                                                          state0):
+        if (name == "auto" and n_steps is not None and not getattr(integrator, "compiled_only", False)
+                and not worth_compiling(system, integrator, n_steps, state0)):
             return None
         runner = Stepper(system, integrator)
         runner.warm()  # loading or compiling is not stepping: out of the run's wall time

@@ -245,9 +245,27 @@ class ImplicitRK(_RungeKutta):
         if self.linearised and not self.diagonally_implicit:
             raise ValueError("solver 'linearised' (one Newton step per stage) needs a diagonally "
                              "implicit tableau")
+        if newton_hessian == "clamped" and (solver == "fixed_point" or not self.diagonally_implicit):
+            raise ValueError("newton_hessian='clamped' needs Newton's method (solver 'newton' or "
+                             "'linearised') on a diagonally implicit tableau")
         if solver == "fixed_point":
             self.max_iter = 200
         self.a_stable = solver != "fixed_point" and self._a_stable()
+
+    @property
+    def compiled_only(self) -> bool:
+        """Whether the method steps only on the compiled path (the clamped matrix is built there)."""
+        return self.newton_hessian == "clamped"
+
+    def start(self, system: System, state: State, dt: float) -> State:
+        """Start a run: forget the factorisations an earlier run kept on ``system``.
+
+        A run's Newton iterations, counts and round-off then depend on the run alone.
+        """
+        from mslab.integrators.newton import linear
+
+        linear.forget(system)
+        return state
 
     def _a_stable(self) -> bool:
         """``|R(iy)| <= 1`` on the imaginary axis, no pole in the left half plane, ``|R(-inf)| <= 1``."""

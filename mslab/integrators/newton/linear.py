@@ -43,7 +43,7 @@ from mslab.integrators.newton.factor import DENSE_MAX, Factor
 from mslab.integrators.newton.newton_matrix import FreePattern
 from mslab.integrators.newton.pcg import pcg
 
-__all__ = ["DENSE_MAX", "FACTOR_OVER_SOLVE", "POLICIES", "Factor", "StageSolver", "stage_solver"]
+__all__ = ["DENSE_MAX", "FACTOR_OVER_SOLVE", "POLICIES", "Factor", "StageSolver", "forget", "stage_solver"]
 
 if TYPE_CHECKING:  # scipy is imported on first use: `import mslab` stays cheap
     import scipy.sparse as sp
@@ -172,15 +172,24 @@ class StageSolver:
         return float(np.linalg.norm(A.data - f.A.data) / np.linalg.norm(f.A.data))
 
     def predicted_cg_iterations(self, change: float, rtol: float) -> float:
-        """Return the CG iterations the model (class docstring) predicts for a relative ``change``."""
+        """Return the CG iterations the model (class docstring) predicts for a relative ``change``.
+
+        inf for an infinite change (the kept factors belong to another pattern: no CG).
+        """
+        if not np.isfinite(change):
+            return np.inf
         x = self.beta[self._same_stage()] * change
         delta = x / (1.0 + x)  # the spectrum of A_f^-1 A within 1 +- delta
         q = delta / (1.0 + np.sqrt(1.0 - delta * delta))
         return 1.0 if q <= 0.0 else max(1.0, float(np.log(rtol) / np.log(q)))
 
     def refit(self, change: float, rate: float) -> None:
-        """Fit ``beta`` to CG's measured ``rate`` per iteration at a relative ``change``."""
-        if change <= 0.0:
+        """Fit ``beta`` to CG's measured ``rate`` per iteration at a relative ``change``.
+
+        Only a measured rate below 1 at a finite, positive change refits the model (negative
+        curvature measures no rate: the matrix is indefinite, not the factors stale).
+        """
+        if not (0.0 < change < np.inf and 0.0 <= rate < 1.0):
             return
         rate = min(rate, 0.999)
         delta = 2.0 * rate / (1.0 + rate * rate)  # the inverse of the rate's formula
@@ -236,8 +245,8 @@ class StageSolver:
             if self.predicted_cg_iterations(change, rtol) <= self.cg_max_iter():
                 x, its, ratio = pcg(A, b, f, rtol, self.cg_max_iter())
                 c.n_lin_iter += its
-                # refit the model to the rate measured (1: negative curvature)
-                self.refit(change, ratio ** (1.0 / its) if its and ratio < 1.0 else 1.0)
+                if its and ratio < 1.0:  # refit the model to the rate measured
+                    self.refit(change, ratio ** (1.0 / its))
                 if x is not None:
                     self.last = "cg"
                     return self.expand(x, r)
@@ -293,6 +302,11 @@ class StageSolver:
 
 
 _CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def forget(system: System) -> None:
+    """Drop the stage solvers (and their kept factorisations) of ``system``: a new run starts clean."""
+    _CACHE.pop(system, None)
 
 
 def stage_solver(system: System, c: float, policy: str = "auto", clamp: bool = False) -> StageSolver:
