@@ -281,10 +281,24 @@ class StageSolver:
             if shifted.definite:
                 shifted.stage = self.stage
                 self.factor, self.mu = shifted, mu  # a definite preconditioner for later CG
-                self.rho = np.inf
+                self.rho, self.last = np.inf, "shifted"
                 return self.expand(shifted.solve(self.rhs(r)), r)
             mu *= 4.0
         raise ArithmeticError("no positive definite shift of the Newton matrix found")
+
+    def indefinite_direction(self, r: np.ndarray) -> np.ndarray:
+        """Return Newton's own direction ``A^-1 (-M r)`` for an indefinite ``A`` (no shift).
+
+        ``A`` is the matrix CHOLMOD just refused; it is factored by SuperLU (symmetric mode,
+        else partial pivoting: :class:`~mslab.integrators.newton.factor.Factor`). Near a root
+        of the step equation that is a saddle of implicit Euler's objective, this converges
+        where shifted (minimising) steps crawl.
+        """
+        f = self.factor
+        plain = Factor(f.A, self.system.counters, pattern=f.pattern, symmetric=self.symmetric)
+        plain.stage = self.stage
+        self.factor, self.rho, self.last = plain, np.inf, "indefinite"
+        return self.expand(plain.solve(self.rhs(r)), r)
 
     def start_stage(self) -> None:
         """Start a new stage equation: the last contraction says nothing about modified steps here."""

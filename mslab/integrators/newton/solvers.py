@@ -55,6 +55,11 @@ class ImplicitRK(Protocol):
     rtol: float
 
 
+#: shifted (minimising) steps that each lower the residual by less than 10 % before Newton's own
+#: step of the indefinite matrix is tried (a root that is a saddle of the objective)
+STALLED = 3
+
+
 def _scale(*arrays: np.ndarray) -> float:
     return 1.0 + max(float(np.max(np.abs(a))) if a.size else 0.0 for a in arrays)
 
@@ -124,12 +129,9 @@ def newton_stage(system: System, xh: np.ndarray, vh: np.ndarray, c: float, tol: 
     matrix when Newton's direction does not descend); otherwise full steps for ``full_steps``
     iterations, then backtracking on the residual.
     ``linearised``: one Newton step from ``V = v^`` and no convergence test (Baraff-Witkin).
-    ``hessian``: ``"exact"`` (default) or ``"clamped"``, Newton's matrix with each spring's
-    compressive term dropped (Choi & Ko 2002): positive definite, so no shifted
-    factorisations when the cloth buckles, at the price of a linear convergence where
-    springs are compressed; the same solution (the residual is exact). Compiled path only
-    (method attribute ``newton_hessian``). Inexact steps (CG on kept factors) solve to the
-    forcing term ``eta = min(cg_rtol_max, 0.9 (|r_k| / |r_k-1|)^2)`` (Eisenstat-Walker).
+    ``hessian``: ``"exact"`` or ``"clamped"`` (``ImplicitRK``'s ``newton_hessian``). After
+    :data:`STALLED` crawling shifted steps, Newton's own step of the indefinite matrix (a saddle
+    root). CG on kept factors solves to ``min(cg_rtol_max, 0.9 (|r_k| / |r_k-1|)^2)``.
 
     Returns ``(X, V, a, power)`` at the solution; raises StepFailure saying why it failed.
     """
@@ -156,7 +158,7 @@ def newton_stage(system: System, xh: np.ndarray, vh: np.ndarray, c: float, tol: 
     V = vh.copy()
     r, point = residual(V)
     value = phi(V) if var and not linearised else 0.0
-    floor, why, previous = 0.0, "", np.inf
+    floor, why, previous, stalled = 0.0, "", np.inf, 0
     for it in range(1, max_iter + 1):
         rnorm = float(np.max(np.abs(r))) if r.size else 0.0
         if not np.isfinite(rnorm):
@@ -171,21 +173,24 @@ def newton_stage(system: System, xh: np.ndarray, vh: np.ndarray, c: float, tol: 
         previous = rnorm
         du = solver.direction(point, r.ravel(), exact=linearised, decades=decades,
                               definite_only=var and not linearised, rtol=forcing)
-        # None: CHOLMOD found A not positive definite
-        du = (solver.shifted_direction(r.ravel()) if du is None else du).reshape(V.shape)
+        plain = du is None and stalled >= STALLED  # (None: CHOLMOD found A not positive definite)
+        du = (du if du is not None else solver.indefinite_direction(r.ravel()) if plain
+              else solver.shifted_direction(r.ravel())).reshape(V.shape)
         floor = 8.0 * np.finfo(float).eps * solver.row_sum / c * _scale(point[0]) if solver.row_sum else 0.0
         if linearised:
             counters.n_iter += 1
             return residual(V + du)[1]
         try:
             alpha, du, trial, trial_point, value = _search(solver, residual, phi if var else None, point, V,
-                                                           r, du, value, it <= full_steps)
+                                                           r, du, value, it <= full_steps, plain)
         except StepFailure as failure:
             counters.n_iter += it
             raise StepFailure(f"Newton's line search found no decrease of implicit Euler's objective at "
                               f"iteration {it} (residual {rnorm:.2e}, tolerance {max(tol, floor):.2e}); "
                               f"try a smaller dt") from failure
         tnorm = float(np.max(np.abs(trial)))
+        crawled = solver.last == "shifted" and tnorm > 0.9 * rnorm
+        stalled = (STALLED if tnorm <= 0.5 * rnorm else 0) if plain else (stalled + 1 if crawled else 0)
         solver.contracted(tnorm / rnorm if alpha == 1.0 and rnorm > 0 else np.inf)
         V = V + alpha * du
         r, point = trial, trial_point
@@ -196,18 +201,26 @@ def newton_stage(system: System, xh: np.ndarray, vh: np.ndarray, c: float, tol: 
 
 
 def _search(solver: StageSolver, residual: Callable, phi: Callable | None, point: tuple, V: np.ndarray,
-            r: np.ndarray, du: np.ndarray, value: float, full_steps: bool) -> tuple:
+            r: np.ndarray, du: np.ndarray, value: float, full_steps: bool, plain: bool = False) -> tuple:
     """Return ``(alpha, du, residual, point, objective)`` at the accepted step ``V + alpha du``.
 
     With the objective ``phi``: a descent direction (:func:`_descent`, which may replace
     ``du``) and Armijo's backtracking on ``phi``; without: :func:`_backtrack` on the
-    residual (``value`` returned unchanged).
+    residual (``value`` returned unchanged). ``plain``: ``du`` is Newton's own direction
+    for an indefinite matrix, taken whole when it halves the residual (the objective may
+    rise: the root is a saddle of it), else replaced by the shifted direction.
     """
     if phi is None:
         alpha, trial, trial_point = _backtrack(residual, V, du, r, full_steps=full_steps)
         return alpha, du, trial, trial_point, value
+    rnorm = float(np.max(np.abs(r)))
+    if plain:
+        trial, trial_point = residual(V + du)
+        if float(np.max(np.abs(trial))) <= 0.5 * rnorm:  # (False for a non-finite residual)
+            return 1.0, du, trial, trial_point, phi(V + du)
+        du = solver.shifted_direction(r.ravel()).reshape(du.shape)
     du, slope = _descent(solver, point, r, du)
-    alpha, trial, trial_point, value = _armijo(residual, phi, V, du, value, slope, float(np.max(np.abs(r))))
+    alpha, trial, trial_point, value = _armijo(residual, phi, V, du, value, slope, rnorm)
     return alpha, du, trial, trial_point, value
 
 
