@@ -194,7 +194,7 @@ class ImplicitRK(_RungeKutta):
     ``newton_hessian="clamped"`` (compiled path, ``backend="numba"``) drops each compressed
     spring's negative term from Newton's matrix (Choi & Ko 2002): always positive definite,
     the same solution (the residual stays exact), but linear convergence where springs are
-    compressed: measured 2.5x slower than ``"exact"`` on a 70x70 cloth at dt = 1/60, and it
+    compressed: measured 2.4-2.5x slower than ``"exact"`` on a 70x70 cloth at dt = 1/60, and it
     did not converge in 4 of 6 steps at dt = 1/30 (``benchmarks/RESULTS.md``).
 
     Cost per step: Newton — per iteration one force evaluation, one Jacobian and one linear

@@ -56,8 +56,11 @@ class ImplicitRK(Protocol):
 
 
 #: shifted (minimising) steps that each lower the residual by less than 10 % before Newton's own
-#: step of the indefinite matrix is tried (a root that is a saddle of the objective)
-STALLED = 3
+#: step of the indefinite matrix is tried (a root that is a saddle of the objective). The try
+#: factors the indefinite matrix by SuperLU (0.3 s at 70 x 70, ten CHOLMOD factorisations): with
+#: 3 it was tried, mostly in vain, 3 times in 6 buckling steps of that cloth at dt 1/30 (+35 %
+#: time), with 10 once (+5 %); a 40 x 40 cloth stuck at a saddle crawled for 190 steps.
+STALLED = 10
 
 
 def _scale(*arrays: np.ndarray) -> float:
