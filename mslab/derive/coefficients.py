@@ -2,7 +2,9 @@
 
 A method's coefficients may be ints, floats, ``fractions.Fraction``, sympy numbers
 (rational or irrational, e.g. ``1/sqrt(2)``) or strings (``"19372/6561"``, ``"0.25"``,
-``"1 - sqrt(2)/2"``). :func:`exact` reads one into a sympy number (``None`` for a float);
+``"1 - sqrt(2)/2"``, read by the bounded grammar of
+:func:`~mslab.integrators.families.coefficients.parse_text`, never evaluated as code).
+:func:`exact` reads one into a sympy number (``None`` for a float);
 :class:`Arithmetic` evaluates order conditions on a whole set of them, exactly (in the
 smallest sympy domain that holds them all: the rationals, an algebraic number field such as
 ``QQ<sqrt(2)>``, or a polynomial ring for transcendental numbers) or, as soon as one is a
@@ -19,6 +21,8 @@ from typing import Any
 import numpy as np
 import sympy as sp
 from sympy.polys.constructor import construct_domain
+
+from mslab.integrators.families.coefficients import parse_text
 
 _EPS = float(np.finfo(float).eps)
 
@@ -42,15 +46,10 @@ def exact(value: Any) -> sp.Expr | None:
     if isinstance(value, sp.Basic):
         expr = value
     elif isinstance(value, str):
-        try:
-            frac = Fraction(value.strip())
-        except ValueError:
-            try:
-                expr = sp.sympify(value, rational=True)
-            except (sp.SympifyError, SyntaxError, TypeError) as err:
-                raise ValueError(f"coefficient {value!r} is not a number") from err
-        else:
-            return sp.Rational(frac.numerator, frac.denominator)
+        parsed = parse_text(value)  # a bounded grammar: the text is never evaluated as code
+        if isinstance(parsed, Fraction):
+            return sp.Rational(parsed.numerator, parsed.denominator)
+        expr = parsed
     elif isinstance(value, Real):
         return None
     else:
