@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from mslab.grading.checks import check_array, fitted_order, reference_run
+from mslab.grading.checks import as_numbers, check_array, fitted_order, reference_run
 from mslab.grading.problems import problem
 from mslab.integrators import ExplicitRK, get_method
 from mslab.scenes.generators import oscillator_solution
@@ -42,7 +42,10 @@ def test_any_five_stage_tableau(student):
 
 @pytest.mark.points(1)
 def test_student_rk4_tableau_drives_the_library(student):
-    A, b, c = student.rk4_tableau()
+    out = student.rk4_tableau()
+    assert isinstance(out, tuple | list) and len(out) == 3, "return (A, b, c)"
+    # only numbers reach the library: no text of the student's is parsed in the grader
+    A, b, c = as_numbers(out[0], (4, 4), "A"), as_numbers(out[1], (4,), "b"), as_numbers(out[2], (4,), "c")
     prob = problem("chain", n=3, dim=2, stiffness=30.0, sag=0.3)
     ref = reference_run("rk4", prob, prob.x0, prob.v0, 0.05)
     mine = ExplicitRK(A, b, c).step(prob.system(), State(prob.x0, prob.v0), 0.05)

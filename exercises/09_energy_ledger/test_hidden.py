@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from mslab.grading.checks import check_scalar
+from mslab.grading.checks import as_numbers, check_scalar
 from mslab.grading.problems import problem
 from mslab.integrators import get_method
 from mslab.precision.drift import drift_verdict
@@ -53,7 +53,9 @@ def test_leapfrog_band_shrinks_four_times_when_h_halves(student):
     bands = []
     for dt in (0.2, 0.1):
         xs, vs = library_run(prob, "leapfrog", prob.v0, dt, round(60.0 / dt))
-        K, U, D = (np.asarray(a, dtype=float) for a in student.ledger(xs, vs, prob, dt))   # your energies
+        out = student.ledger(xs, vs, prob, dt)                               # your energies
+        assert isinstance(out, tuple | list) and len(out) == 3, "return (K, U, D)"
+        K, U, D = (as_numbers(a, what=name) for a, name in zip(out, "KUD", strict=True))
         error = (K + U + D - K[0] - U[0] - D[0]) / np.max(K)
         bands.append(student.band_and_drift(dt * np.arange(len(xs)), error)[0])
     ratio = bands[0] / bands[1]

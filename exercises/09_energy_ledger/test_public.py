@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from mslab.grading.checks import check_array, check_scalar
+from mslab.grading.checks import as_numbers, check_array, check_scalar
 from mslab.grading.problems import problem
 from mslab.integrators import get_method
 from mslab.state import State
@@ -53,7 +53,9 @@ def test_the_ledger_of_a_damped_chain_balances_along_rk4(student):
     v0 = np.random.default_rng(2).normal(size=prob.x0.shape) * (~prob.pinned)[:, None]
     dt = 1e-3
     xs, vs = library_run(prob, "rk4", v0, dt, 800)
-    K, U, D = (np.asarray(a, dtype=float) for a in student.ledger(xs, vs, prob, dt))
+    out = student.ledger(xs, vs, prob, dt)
+    assert isinstance(out, tuple | list) and len(out) == 3, "return (K, U, D)"
+    K, U, D = (as_numbers(a, what=name) for a, name in zip(out, "KUD", strict=True))
     for name, a in (("K", K), ("U", U), ("D", D)):
         assert a.shape == (801,), f"{name}: shape {a.shape}, expected (801,)"
     P = prob.gamma * np.sum(vs[:, ~prob.pinned] ** 2, axis=(1, 2))

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from mslab.grading.checks import check_array, check_shape
+from mslab.grading.checks import as_numbers, check_array, check_shape
 from mslab.scenes import grid_springs
 
 MODULE = "cloth_springs"
@@ -12,6 +12,7 @@ MODULE = "cloth_springs"
 def as_set(pairs, n_particles):
     pairs = np.asarray(pairs)
     assert pairs.ndim == 2 and pairs.shape[1] == 2, f"pairs: shape {pairs.shape}, expected (n_springs, 2)"
+    assert len(pairs) <= n_particles * (n_particles - 1) // 2, f"{len(pairs)} pairs: more than there are"
     found = set()
     for a, b in pairs.tolist():
         assert a != b and 0 <= a < n_particles and 0 <= b < n_particles, f"bad pair ({a}, {b})"
@@ -36,7 +37,7 @@ def test_bend_springs_skip_one_particle(student):
 @pytest.mark.points(1)
 def test_the_fold_is_felt_by_bend_springs_only(student):
     n_rows, n_cols, h, phi, row = 6, 4, 0.1, np.radians(50.0), 2
-    x = np.asarray(student.folded(n_rows, n_cols, h, phi, row), dtype=float)
+    x = as_numbers(student.folded(n_rows, n_cols, h, phi, row), what="x")
     check_shape(x, (24, 3), what="x")
     i, j = np.divmod(np.arange(24), n_cols)
     flat = np.stack([j * h, i * h, np.zeros(24)], axis=1)
@@ -61,6 +62,6 @@ def test_grids_drawn_at_grading(student):
             got = as_set(student.grid_springs(n_rows, n_cols, kind), n)
             assert got == as_set(grid_springs((n_rows, n_cols), kind), n), f"{kind} on {n_rows} x {n_cols}"
     theta, h = float(rng.uniform(0.1, 1.0)), float(rng.uniform(0.05, 0.5))
-    x = np.asarray(student.sheared(n_rows, n_cols, h, theta), dtype=float)
+    x = as_numbers(student.sheared(n_rows, n_cols, h, theta), what="x")
     i, j = np.divmod(np.arange(n), n_cols)
     check_array(x, np.stack([j * h + i * h * np.sin(theta), i * h * np.cos(theta)], axis=1), what="sheared x")

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from mslab.grading.checks import check_array, check_shape
+from mslab.grading.checks import as_numbers, check_array, check_shape
 from mslab.scenes import grid_springs
 
 MODULE = "cloth_springs"
@@ -13,6 +13,7 @@ def as_set(pairs, n_particles):
     """Unordered pairs as a set; fails on duplicates, self-springs and indices off the grid."""
     pairs = np.asarray(pairs)
     assert pairs.ndim == 2 and pairs.shape[1] == 2, f"pairs: shape {pairs.shape}, expected (n_springs, 2)"
+    assert len(pairs) <= n_particles * (n_particles - 1) // 2, f"{len(pairs)} pairs: more than there are"
     found = set()
     for a, b in pairs.tolist():
         assert a != b and 0 <= a < n_particles and 0 <= b < n_particles, f"bad pair ({a}, {b})"
@@ -44,7 +45,7 @@ def test_shear_springs_are_both_diagonals_of_every_cell(student):
 @pytest.mark.points(2)
 def test_the_shear_mode_is_free_for_structural_springs_only(student):
     n_rows, n_cols, h, theta = 4, 5, 0.2, np.radians(25.0)
-    x = np.asarray(student.sheared(n_rows, n_cols, h, theta), dtype=float)
+    x = as_numbers(student.sheared(n_rows, n_cols, h, theta), what="x")
     check_shape(x, (20, 2), what="x")
     i, j = np.divmod(np.arange(20), n_cols)
     check_array(x[:, 1], i * h * np.cos(theta), what="y")

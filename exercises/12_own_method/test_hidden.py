@@ -5,7 +5,7 @@ import pytest
 
 from mslab import ExplicitRK
 from mslab.derive import order
-from mslab.grading.checks import check_array, check_shape, fitted_order
+from mslab.grading.checks import as_numbers, check_array, fitted_order
 from mslab.grading.problems import problem
 from mslab.scenes.generators import oscillator_solution
 from mslab.state import State
@@ -15,9 +15,7 @@ MODULE = "own_method"
 
 def tableau(out):
     assert isinstance(out, tuple | list) and len(out) == 2, "return (A, b)"
-    A, b = np.asarray(out[0], dtype=float), np.asarray(out[1], dtype=float)
-    check_shape(A, (3, 3), what="A")
-    check_shape(b, (3,), what="b")
+    A, b = as_numbers(out[0], (3, 3), what="A"), as_numbers(out[1], (3,), what="b")
     assert np.all(np.triu(A) == 0.0), "A must be strictly lower triangular (an explicit method)"
     return A, b
 

@@ -7,7 +7,7 @@ import pytest
 
 from mslab import ExplicitRK
 from mslab.derive import order
-from mslab.grading.checks import check_array, check_shape
+from mslab.grading.checks import as_numbers, check_array
 
 MODULE = "own_method"
 
@@ -17,9 +17,7 @@ HEUN3 = (np.array([[0, 0, 0], [1 / 3, 0, 0], [0, 2 / 3, 0]], dtype=float), np.ar
 
 def tableau(out):
     assert isinstance(out, tuple | list) and len(out) == 2, "return (A, b)"
-    A, b = np.asarray(out[0], dtype=float), np.asarray(out[1], dtype=float)
-    check_shape(A, (3, 3), what="A")
-    check_shape(b, (3,), what="b")
+    A, b = as_numbers(out[0], (3, 3), what="A"), as_numbers(out[1], (3,), what="b")
     assert np.all(np.triu(A) == 0.0), "A must be strictly lower triangular (an explicit method)"
     return A, b
 

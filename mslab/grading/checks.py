@@ -31,6 +31,45 @@ def check_shape(out: Any, shape: tuple, what: str = "result") -> None:
         raise AssertionError(f"{what}: dtype {out.dtype}, expected a floating-point array")
 
 
+def as_numbers(value: Any, shape: tuple | None = None, what: str = "result") -> np.ndarray:
+    """Return the student's numbers as a float array, reading no text; AssertionError otherwise.
+
+    Accepts a real numeric ndarray or nested lists/tuples of ints and floats (of at most
+    ``shape`` when given). Strings are refused, never parsed (the trust boundary: nothing
+    the student answered is read by a parser that could execute or expand it).
+    """
+    def plain(v: Any, depth: int) -> bool:
+        if isinstance(v, list | tuple):
+            return depth < 8 and all(plain(w, depth + 1) for w in v)
+        return isinstance(v, int | float | np.integer | np.floating) and not isinstance(v, bool | np.bool_)
+
+    if isinstance(value, np.ndarray):
+        ok = value.dtype.kind in "iuf"
+    else:
+        ok = isinstance(value, list | tuple) and plain(value, 0)
+    if not ok:
+        kind = value.dtype if isinstance(value, np.ndarray) else type(value).__name__
+        raise AssertionError(f"{what}: expected numbers, got {kind}")
+    try:
+        out = np.array(value, dtype=float)
+    except ValueError:
+        raise AssertionError(f"{what}: a ragged nest of lists, not an array") from None
+    if shape is not None and out.shape != tuple(shape):
+        raise AssertionError(f"{what}: shape {out.shape}, expected {tuple(shape)}")
+    return out
+
+
+def as_count(value: Any, what: str = "result") -> int:
+    """Return the student's whole number (an int, or a float with an integer value) as an int."""
+    if isinstance(value, np.ndarray) and value.shape == ():
+        value = value.item()
+    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+        raise AssertionError(f"{what}: expected a whole number, got {type(value).__name__}")
+    if not np.isfinite(value) or value != int(value):
+        raise AssertionError(f"{what}: expected a whole number, got {value!r}")
+    return int(value)
+
+
 def check_array(out: Any, expected: npt.ArrayLike, rtol: float = 1e-10, atol: float = 1e-12,
                 what: str = "result") -> None:
     """``out`` must be a float ndarray of the expected shape, finite, and close to ``expected``."""
