@@ -158,13 +158,14 @@ class Sandbox:
 
     ``mode`` is the isolation (:mod:`mslab.grading.isolation`). In the namespace modes the
     student's file reaches the sandbox through an anonymous memory file and ``workdir`` is
-    not used: the sandbox sees its own ``/work`` only. ``cgroups`` is the grading's parent
+    not used: the sandbox sees its own ``/work`` only. ``source``: the module's bytes as the
+    runner received them (then no file is read again). ``cgroups`` is the grading's parent
     cgroup (:func:`mslab.grading.box.setup`) or None: each start gets a fresh :class:`Box`.
     """
 
     def __init__(self, module_file: Path, workdir: Path, memory_mb: int = 1024, cpu_s: int = 60,
                  file_mb: int = 1, import_timeout: float = 30.0, mode: str = "rlimits",
-                 cgroups: dict | None = None):
+                 cgroups: dict | None = None, source: bytes | None = None):
         self.module_file = Path(module_file)
         self.mode = mode
         self.import_timeout = float(import_timeout)
@@ -173,7 +174,8 @@ class Sandbox:
         self._source_fd: int | None = None
         if mode != "rlimits":
             self._source_fd = os.memfd_create("student", os.MFD_CLOEXEC)
-            os.write(self._source_fd, self.module_file.read_bytes())
+            data = self.module_file.read_bytes() if source is None else source
+            os.write(self._source_fd, data)
         self.memory_mb, self.cpu_s, self.file_mb = memory_mb, cpu_s, file_mb
         self.proc: subprocess.Popen | None = None
         self.box: Box | None = None

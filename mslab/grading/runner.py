@@ -10,10 +10,13 @@ student code never runs in this process. It
    user without capabilities (the sandbox) cannot open its ``/proc/PID/fd`` or memory,
    says ``ready`` (only then does the grader send the job), keeps a private copy of stdout
    for the result and points its standard streams at ``/dev/null``;
-2. writes the tests into a fresh temporary folder and the student's file into another one;
+2. writes the tests into a fresh temporary folder and the student's source (as the grader
+   sent it: the runner reads no student path) into one folder per test group;
 3. runs pytest in-process on the tests (no conftest, no plugin autoload, importlib
    import mode) with :class:`GradingPlugin`, whose ``student`` fixture forwards every call
-   to the sandbox (:mod:`mslab.grading.remote`); the tests' own assertions run here;
+   to the sandbox (:mod:`mslab.grading.remote`) of the test's group: hidden and public
+   tests never share a sandbox process; the tests' own assertions run here, on answers
+   decoded as plain data (:mod:`mslab.grading.wire`);
 4. checks the test files still hold what the grader sent (else the run counts as
    tampered) and prints one line ``NONCE JSON`` per item with every test's outcome.
 """
@@ -25,7 +28,7 @@ import os
 import shutil
 import sys
 import tempfile
-from collections.abc import Generator, Iterator
+from collections.abc import Callable, Generator, Iterator
 from pathlib import Path
 
 import pytest
@@ -55,23 +58,50 @@ def short_reason(excinfo: pytest.ExceptionInfo, hidden: bool) -> tuple[str, str]
     return (PHRASES[kind] if hidden else text[:300]), kind
 
 
-class GradingPlugin:
-    """pytest plugin of the runner: the ``student`` fixture and the outcome of every test."""
+def test_group(filename: str) -> str:
+    """``"hidden"`` or ``"public"``: the tests of one group share a sandbox, never two groups."""
+    return "hidden" if HIDDEN.match(filename) else "public"
 
-    def __init__(self, sandbox: Sandbox | None, timeout: float, missing: str | None = None):
-        self.sandbox = sandbox
+
+class GradingPlugin:
+    """pytest plugin of the runner: the ``student`` fixture and the outcome of every test.
+
+    ``make_sandbox(group)`` starts the student's module afresh for a test group. Hidden and
+    public tests never share a sandbox: when a test of the other group asks for the
+    student, every sandbox of the group before is closed (its processes killed, its box
+    removed) and a new one is made, so nothing computed from a hidden input can reach a
+    public test's message.
+    """
+
+    def __init__(self, make_sandbox: Callable[[str], Sandbox] | None, timeout: float,
+                 missing: str | None = None):
+        self.make_sandbox = make_sandbox
+        self.sandboxes: dict[str, Sandbox] = {}
         self.timeout = float(timeout)
         self.missing = missing
         self.results: dict[str, dict] = {}
         self.collect_errors: list[str] = []
         self.tamper_check = None
 
+    def sandbox(self, group: str) -> Sandbox:
+        """Return the sandbox of ``group``, closing every other group's first."""
+        for other in [g for g in self.sandboxes if g != group]:
+            self.sandboxes.pop(other).close()
+        if group not in self.sandboxes:
+            self.sandboxes[group] = self.make_sandbox(group)
+        return self.sandboxes[group]
+
+    def close(self) -> None:
+        """Close every sandbox."""
+        while self.sandboxes:
+            self.sandboxes.popitem()[1].close()
+
     @pytest.fixture
-    def student(self) -> Student:
-        """Fixture: the student's module, each call forwarded to the sandbox."""
+    def student(self, request: pytest.FixtureRequest) -> Student:
+        """Fixture: the student's module, each call forwarded to the sandbox of the test's group."""
         if self.missing:
             raise StudentError(self.missing, "missing")
-        return Student(self.sandbox, self.timeout)
+        return Student(self.sandbox(test_group(Path(str(request.node.fspath)).name)), self.timeout)
 
     def pytest_collectreport(self, report: pytest.CollectReport) -> None:
         """Record a test file that could not be collected."""
@@ -123,17 +153,22 @@ def run_exercise(job: dict, ex: dict) -> dict:
         ini = tests_dir / "pytest.ini"
         ini.write_text("[pytest]\nmarkers =\n    points(n): points a test is worth\n")
         os.chmod(tests_dir, 0o555)
-        sandbox, missing = None, None
+        missing = None
         if ex.get("student_source") is None:
             missing = f"{ex['module']} is missing from the submission"
-        else:
-            module_file = work_dir / ex["module"]
-            module_file.write_text(ex["student_source"])
-            sandbox = Sandbox(module_file, work_dir, memory_mb=int(job.get("memory_mb", 1024)),
-                              cpu_s=int(ex.get("cpu_s", 120)),
-                              import_timeout=float(job.get("import_timeout", 30.0)),
-                              mode=job.get("isolation", "rlimits"), cgroups=job.get("cgroups"))
-        plugin = GradingPlugin(sandbox, float(job.get("timeout", 10.0)), missing)
+        source = (ex.get("student_source") or "").encode()
+
+        def make_sandbox(group: str) -> Sandbox:
+            # the source as the grader sent it (no student path is read here); a folder per group
+            folder = work_dir / group
+            folder.mkdir()
+            (folder / ex["module"]).write_bytes(source)
+            return Sandbox(folder / ex["module"], folder, memory_mb=int(job.get("memory_mb", 1024)),
+                           cpu_s=int(ex.get("cpu_s", 120)),
+                           import_timeout=float(job.get("import_timeout", 30.0)),
+                           mode=job.get("isolation", "rlimits"), cgroups=job.get("cgroups"), source=source)
+
+        plugin = GradingPlugin(make_sandbox, float(job.get("timeout", 10.0)), missing)
 
         def unchanged() -> bool:
             files = {p.name for p in tests_dir.iterdir()} - {"__pycache__"}
@@ -148,8 +183,7 @@ def run_exercise(job: dict, ex: dict) -> dict:
         try:
             pytest.main(args, plugins=[plugin])
         finally:
-            if sandbox is not None:
-                sandbox.close()
+            plugin.close()
             # importlib mode caches test modules by name: forget them for the next exercise
             for key, module in list(sys.modules.items()):
                 if str(getattr(module, "__file__", None) or "").startswith(str(tests_dir)):
