@@ -145,3 +145,46 @@ def reference_run(method: str, problem: Problem, x: npt.ArrayLike, v: npt.ArrayL
     for _ in range(steps):
         state = integrator.step(system, state, dt)
     return state
+
+
+def swinging_spring(rng: np.random.Generator) -> tuple[Problem, np.ndarray, float]:
+    """Draw a spring swinging sideways: ``(problem, v0, t_end)``.
+
+    Nonlinear, so there is no closed form: an answer that imitates the exact flow of the
+    oscillator plus an error of the tested order (implementing no method) cannot pass a
+    test on it. Drawn at grading time (``np.random.default_rng()`` without a seed).
+    """
+    from mslab.grading.problems import problem
+
+    prob = problem("oscillator", stiffness=float(rng.uniform(2.0, 6.0)),
+                   displacement=float(rng.uniform(0.2, 0.5)), dim=2)
+    v0 = np.zeros((2, 2))
+    v0[1, 1] = rng.uniform(0.5, 1.0)
+    return prob, v0, float(rng.uniform(1.5, 2.5))
+
+
+def observed_order(run: Callable[[int], list], prob: Problem, v0: np.ndarray, t_end: float,
+                   steps: tuple[int, ...] = (20, 40, 80), points: int = 4) -> float:
+    """Return the observed order of ``run(n)``: the positions after each of its n steps to ``t_end``.
+
+    The error of a run is the largest distance from mslab's RK4 at 4000 steps at ``points``
+    checkpoints (``t_end * k / points``); the order is the slope over the step sizes.
+    """
+    from mslab.integrators import get_method
+    from mslab.state import State
+
+    system, rk4, fine = prob.system(), get_method("rk4"), 4000
+    state, ref = rk4.start(system, State(prob.x0.copy(), np.array(v0, dtype=float)), t_end / fine), []
+    for i in range(fine):
+        state = rk4.step(system, state, t_end / fine)
+        if (i + 1) % (fine // points) == 0:
+            ref.append(state.x)
+    errors = []
+    for n in steps:
+        xs = run(n)
+        assert len(xs) == n, f"{len(xs)} positions for {n} steps"
+        mine = [as_numbers(xs[(k + 1) * (n // points) - 1], prob.x0.shape, what="x") for k in range(points)]
+        errors.append(float(np.max(np.linalg.norm(np.array(mine) - np.array(ref), axis=-1))))
+    if not all(np.isfinite(errors)) or min(errors) <= 0.0:
+        raise AssertionError(f"errors {errors}: not a convergent run")
+    return fitted_order([t_end / n for n in steps], errors)
