@@ -49,13 +49,14 @@ def test_newton_damps_a_stiff_oscillation(student):
     M = np.linalg.inv(np.array([[1.0, -h], [k * h, 1.0]]))
     x, v, y = prob.x0, prob.v0, np.array([0.3, 0.0])
     amplitude = []
-    for _ in range(10):
+    for n in range(10):
         x, v, _ = student.implicit_euler_newton(x, v, prob, h)
         y = M @ y
         amplitude.append(np.hypot(float(x[1, 0]) - 1.0, float(v[1, 0]) / np.sqrt(k)))
+        if n < 3:  # while the state is far above round-off: implicit Euler's own phase and decay
+            check_array(np.array([float(x[1, 0]) - 1.0, float(v[1, 0])]), y, rtol=1e-7, atol=1e-12,
+                        what=f"(u, v) after {n + 1} steps")
     assert np.all(np.diff(amplitude) < 0) and amplitude[-1] < 0.3 * 0.2, "the oscillation must decay"
-    check_array(np.array([float(x[1, 0]) - 1.0, float(v[1, 0])]), y, rtol=1e-7, atol=1e-10,
-                what="(u, v) after 10 steps")
 
 
 @pytest.mark.points(1)
