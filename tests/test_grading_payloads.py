@@ -127,33 +127,40 @@ def test_tableau_strings_do_not_run_in_the_runner(tmp_path):
 
 # -- a payload in every place student data enters ----------------------------------------------
 
-#: what every function of the submission answers: one student per kind
+#: what the functions of the submission answer, call after call in turn (one student per group)
 KINDS = {
-    "text": "return P",
-    "texts": "return ([[P] * 4] * 4, [P] * 4, [P] * 4)",
-    "pairs": "return (P, P)",
-    "mapping": "return {P: [P, {P: (P,)}], 'x': P}",
-    "raises": "raise RuntimeError(P)",
-    "expanding": "return (['1e10000000'] * 4, '9' * 4000, ['1e-99999999'] * 3)",
-    "huge_number": "return (10 ** 5000, 2 ** 70, -(2 ** 64))",
-    "deep": "return functools.reduce(lambda acc, _: [acc, P], range(30), P)",
-    "giant": "return np.zeros(3_000_000)",
+    "texts": ["return P",
+              "return ([[P] * 4] * 4, [P] * 4, [P] * 4)",
+              "return (P, P)",
+              "return {P: [P, {P: (P,)}], 'x': P}"],
+    "raises": ["raise RuntimeError(P)",
+               "raise type(P[:40], (Exception,), {})(P)",
+               "return (['1e10000000'] * 4, '9' * 4000, ['1e-99999999'] * 3)"],
+    "sizes": ["return (10 ** 5000, 2 ** 70, -(2 ** 64))",
+              "return functools.reduce(lambda acc, _: [acc, P], range(30), P)",
+              "return np.zeros(1_000_000)",
+              "return np.zeros(5_000_000)"],
 }
 
 
-def payload_module(marker: Path, kind: str) -> str:
+def payload_module(marker: Path, group: str) -> str:
+    answers = "\n".join(f"    if k == {i}:\n        {line}" for i, line in enumerate(KINDS[group]))
     return textwrap.dedent(f"""
         import functools
+        import itertools
         import numpy as np
         P = {payload(marker)!r}
+        _calls = itertools.count()
+
+        def _answer():
+            k = next(_calls) % {len(KINDS[group])}
+        {{answers}}
 
         def __getattr__(name):   # every function the tests ask for
             if name.startswith("__"):
                 raise AttributeError(name)
-            def answer(*args, **kwargs):
-                {KINDS[kind]}
-            return answer
-    """)
+            return lambda *args, **kwargs: _answer()
+    """).replace("{answers}", answers)
 
 
 @pytest.mark.slow
@@ -161,9 +168,9 @@ def test_payload_in_every_answer_of_every_exercise_is_inert(tmp_path):
     marker = tmp_path / "ran"
     exercises = find_exercises(SOURCE)
     klass = tmp_path / "class"
-    for kind in KINDS:
+    for group in KINDS:
         for ex in exercises:
-            submit(klass / kind, ex.name, ex.module, payload_module(marker, kind))
+            submit(klass / group, ex.name, ex.module, payload_module(marker, group))
     results = grade([klass], source=SOURCE, jobs=2, timeout=10.0)
     assert not marker.exists(), "the runner executed a student's text"
     assert sorted(r.student for r in results) == sorted(KINDS)

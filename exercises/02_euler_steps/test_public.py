@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from mslab.grading.checks import check_array, check_shape, reference_run
+from mslab.grading.checks import check_array, check_shape, check_step, reference_run
 from mslab.grading.problems import problem
 
 MODULE = "euler_steps"
@@ -17,6 +17,21 @@ def one_step(student, name, prob, dt, x=None, v=None):
     check_shape(out[0], x.shape, what="x_new")
     check_shape(out[1], v.shape, what="v_new")
     return out
+
+
+#: the common mistakes of each step, as (hint, method whose step that mistake takes)
+MISTAKES = {
+    "symplectic_euler": lambda prob, v0, dt: {
+        "the two symplectic Eulers are swapped (this one updates v first, then x with the new v)":
+            reference_run("symplectic_euler_x", prob, prob.x0, v0, dt),
+        "x moved with the old velocity (that is forward Euler)":
+            reference_run("euler", prob, prob.x0, v0, dt)},
+    "symplectic_euler_x": lambda prob, v0, dt: {
+        "the two symplectic Eulers are swapped (this one updates x first, then v at the new x)":
+            reference_run("symplectic_euler", prob, prob.x0, v0, dt),
+        "v updated at the old position (that is forward Euler)":
+            reference_run("euler", prob, prob.x0, v0, dt)},
+}
 
 
 def moving(prob, seed):
@@ -41,8 +56,7 @@ def test_symplectic_euler_matches_the_library(student):
     v0 = moving(prob, 21)
     ref = reference_run("symplectic_euler", prob, prob.x0, v0, 0.01)
     x, v = one_step(student, "symplectic_euler_step", prob, 0.01, v=v0)
-    check_array(x, ref.x, what="x_new")
-    check_array(v, ref.v, what="v_new")
+    check_step(x, v, ref, mistakes=MISTAKES["symplectic_euler"](prob, v0, 0.01))
 
 
 @pytest.mark.points(2)
@@ -51,5 +65,4 @@ def test_symplectic_euler_x_matches_the_library(student):
     v0 = moving(prob, 22)
     ref = reference_run("symplectic_euler_x", prob, prob.x0, v0, 0.01)
     x, v = one_step(student, "symplectic_euler_x_step", prob, 0.01, v=v0)
-    check_array(x, ref.x, what="x_new")
-    check_array(v, ref.v, what="v_new")
+    check_step(x, v, ref, mistakes=MISTAKES["symplectic_euler_x"](prob, v0, 0.01))

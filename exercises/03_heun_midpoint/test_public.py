@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from mslab.grading.checks import check_array, check_shape, reference_run
+from mslab.grading.checks import check_array, check_shape, check_step, reference_run
 from mslab.grading.problems import problem
 
 MODULE = "heun_midpoint"
@@ -14,6 +14,23 @@ def pair(out, shape):
     check_shape(out[0], shape, what="x_new")
     check_shape(out[1], shape, what="v_new")
     return out
+
+
+#: the common mistakes, as hint -> the method whose step that mistake takes
+HINTS = {"midpoint": "this is the midpoint method's step: Heun averages the slopes at both ends",
+         "heun": "this is Heun's step: the midpoint method uses the one slope at the half step",
+         "euler": "one Euler step: the second slope is missing"}
+
+
+def mistakes(other, prob, v0):
+    return {HINTS[m]: reference_run(m, prob, prob.x0, v0, 0.01) for m in (other, "euler")}
+
+
+def moving_chain():
+    """A damped chain with every free particle moving: from rest Heun and the midpoint
+    method take the same step on it (position-only nonlinearity, linear drag)."""
+    prob = problem("chain", n=5, dim=2, stiffness=60.0, gamma=0.3, sag=0.25)
+    return prob, np.random.default_rng(31).normal(size=prob.x0.shape) * (~prob.pinned)[:, None]
 
 
 @pytest.mark.points(2)
@@ -35,17 +52,15 @@ def test_heun_on_a_swinging_spring_by_hand(student):
 
 @pytest.mark.points(2)
 def test_heun_matches_the_library(student):
-    prob = problem("chain", n=5, dim=2, stiffness=60.0, gamma=0.3, sag=0.25)
-    ref = reference_run("heun", prob, prob.x0, prob.v0, 0.01)
-    x, v = pair(student.heun_step(prob.x0, prob.v0, prob, 0.01), (5, 2))
-    check_array(x, ref.x, what="x_new")
-    check_array(v, ref.v, what="v_new")
+    prob, v0 = moving_chain()
+    ref = reference_run("heun", prob, prob.x0, v0, 0.01)
+    x, v = pair(student.heun_step(prob.x0, v0, prob, 0.01), (5, 2))
+    check_step(x, v, ref, mistakes=mistakes("midpoint", prob, v0))
 
 
 @pytest.mark.points(2)
 def test_midpoint_matches_the_library(student):
-    prob = problem("chain", n=5, dim=2, stiffness=60.0, gamma=0.3, sag=0.25)
-    ref = reference_run("midpoint", prob, prob.x0, prob.v0, 0.01)
-    x, v = pair(student.midpoint_step(prob.x0, prob.v0, prob, 0.01), (5, 2))
-    check_array(x, ref.x, what="x_new")
-    check_array(v, ref.v, what="v_new")
+    prob, v0 = moving_chain()
+    ref = reference_run("midpoint", prob, prob.x0, v0, 0.01)
+    x, v = pair(student.midpoint_step(prob.x0, v0, prob, 0.01), (5, 2))
+    check_step(x, v, ref, mistakes=mistakes("heun", prob, v0))

@@ -188,3 +188,21 @@ def observed_order(run: Callable[[int], list], prob: Problem, v0: np.ndarray, t_
     if not all(np.isfinite(errors)) or min(errors) <= 0.0:
         raise AssertionError(f"errors {errors}: not a convergent run")
     return fitted_order([t_end / n for n in steps], errors)
+
+
+def check_step(x: Any, v: Any, ref: State, mistakes: dict[str, State] | None = None,
+               rtol: float = 1e-10, atol: float = 1e-12) -> None:
+    """``(x, v)`` must be the step ``ref``; a wrong one that is a known mistake's says which, in one line.
+
+    ``mistakes`` maps a one-line hint (e.g. "the two symplectic Eulers are swapped") to
+    the state that mistake produces; checked only once the answer is wrong.
+    """
+    try:
+        check_array(x, ref.x, rtol=rtol, atol=atol, what="x_new")
+        check_array(v, ref.v, rtol=rtol, atol=atol, what="v_new")
+    except AssertionError as err:
+        for hint, wrong in (mistakes or {}).items():
+            if all(isinstance(a, np.ndarray) and a.shape == b.shape
+                   and np.allclose(a, b, rtol=1e-8, atol=1e-10) for a, b in ((x, wrong.x), (v, wrong.v))):
+                raise AssertionError(f"{str(err).splitlines()[0]}: likely mistake: {hint}") from None
+        raise
