@@ -1,24 +1,31 @@
-"""Hidden and public tests never share a sandbox (issue 35, item 4).
+"""The runner's side of the trust boundary: sandboxes per test group, bounded checks (issue 35).
 
+Hidden and public tests never share a sandbox (item 4).
 One sandbox process once served every test of an exercise, the hidden tests first: a
 public test's quoted message carried the shape and first value of every hidden call. Here
 a student records the inputs of every call (in memory and in a file beside its module)
 and sends them back in the message of every public test: a marker planted in a hidden
 test's inputs must appear in no output, while the same kind of marker in a public test
 does (so the leak works, and this test can fail).
+
+Whatever a test's checks do with the answers, they cost the runner a bounded CPU time: an
+endless check fails as a CPU timeout and the next test runs.
 """
 
 from __future__ import annotations
 
 import json
 import shutil
+import subprocess
+import sys
 import textwrap
 from pathlib import Path
 
 from mslab.grading import grade
 from mslab.grading.report import format_report
 
-SOURCE = Path(__file__).resolve().parents[1] / "exercises"
+ROOT = Path(__file__).resolve().parents[1]
+SOURCE = ROOT / "exercises"
 TARGET, MODULE = "07_stability_function", "stability_function.py"
 HIDDEN_MARK, PUBLIC_MARK = "6180339", "2718281"
 
@@ -85,3 +92,37 @@ def test_a_public_message_carries_nothing_from_a_hidden_input(tmp_path):
     outputs = format_report(result) + json.dumps(result.to_dict())
     assert HIDDEN_MARK not in outputs                                     # ... and carries no hidden input
     assert tests["test_hidden.py::test_marked_hidden"].passed     # the hidden tests ran, in their sandbox
+
+
+SLOW_CHECK = """
+import pytest
+
+MODULE = "m"
+
+
+@pytest.mark.points(1)
+def test_a_check_that_never_ends(student):
+    n = student.answer()
+    while True:  # an instructor's check made endless by what the student answered
+        n = (n * 3 + 1) % 1000003
+
+
+@pytest.mark.points(1)
+def test_the_next_test_still_runs(student):
+    assert student.answer() == 7
+"""
+
+
+def test_the_runner_spends_bounded_cpu_on_the_checks_of_one_test():
+    job = {"nonce": "n0nce", "timeout": 5.0, "isolation": "rlimits", "check_cpu": 1.0,
+           "items": [{"key": "k", "module": "m.py", "student_source": "def answer():\n    return 7\n",
+                      "tests": {"test_hidden.py": SLOW_CHECK}}]}
+    proc = subprocess.run([sys.executable, "-m", "mslab.grading.runner"], input=json.dumps(job),
+                          capture_output=True, text=True, timeout=300, cwd=ROOT)
+    lines = [ln for ln in proc.stdout.splitlines() if ln.startswith("n0nce ")]
+    assert len(lines) == 1, proc.stdout + proc.stderr
+    results = json.loads(lines[0].split(" ", 1)[1])["outcome"]["results"]
+    slow = results["test_hidden.py::test_a_check_that_never_ends"]
+    assert slow["passed"] is False and slow["kind"] == "cpu", slow
+    assert slow["reason"] == "timed out (CPU time limit)"
+    assert results["test_hidden.py::test_the_next_test_still_runs"]["passed"] is True

@@ -16,7 +16,8 @@ student code never runs in this process. It
    import mode) with :class:`GradingPlugin`, whose ``student`` fixture forwards every call
    to the sandbox (:mod:`mslab.grading.remote`) of the test's group: hidden and public
    tests never share a sandbox process; the tests' own assertions run here, on answers
-   decoded as plain data (:mod:`mslab.grading.wire`);
+   decoded as plain data (:mod:`mslab.grading.wire`), each test's under a CPU limit of
+   the runner's own (:func:`check_cpu_limit`);
 4. checks the test files still hold what the grader sent (else the run counts as
    tampered) and prints one line ``NONCE JSON`` per item with every test's outcome.
 """
@@ -26,6 +27,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import signal
 import sys
 import tempfile
 from collections.abc import Callable, Generator, Iterator
@@ -58,6 +60,16 @@ def short_reason(excinfo: pytest.ExceptionInfo, hidden: bool) -> tuple[str, str]
     return (PHRASES[kind] if hidden else text[:300]), kind
 
 
+#: the runner's own CPU seconds per test (the instructor's checks on the answers) are at most
+#: CHECK_CPU_FACTOR times the test's limit, and at least CHECK_CPU_MIN: honest checks take seconds
+CHECK_CPU_FACTOR, CHECK_CPU_MIN = 6.0, 60.0
+
+
+def check_cpu_limit(timeout: float) -> float:
+    """Return the CPU seconds the runner may spend on one test's own checks."""
+    return max(CHECK_CPU_MIN, CHECK_CPU_FACTOR * float(timeout))
+
+
 def test_group(filename: str) -> str:
     """``"hidden"`` or ``"public"``: the tests of one group share a sandbox, never two groups."""
     return "hidden" if HIDDEN.match(filename) else "public"
@@ -74,8 +86,9 @@ class GradingPlugin:
     """
 
     def __init__(self, make_sandbox: Callable[[str], Sandbox] | None, timeout: float,
-                 missing: str | None = None):
+                 missing: str | None = None, check_cpu: float | None = None):
         self.make_sandbox = make_sandbox
+        self.check_cpu = check_cpu_limit(timeout) if check_cpu is None else float(check_cpu)
         self.sandboxes: dict[str, Sandbox] = {}
         self.timeout = float(timeout)
         self.missing = missing
@@ -102,6 +115,25 @@ class GradingPlugin:
         if self.missing:
             raise StudentError(self.missing, "missing")
         return Student(self.sandbox(test_group(Path(str(request.node.fspath)).name)), self.timeout)
+
+    @pytest.hookimpl(wrapper=True)
+    def pytest_runtest_call(self, item: pytest.Item) -> Generator[None, None, None]:
+        """Run the test body under the runner's own CPU limit (``ITIMER_PROF``: this process only).
+
+        Whatever the checks do with the student's answers, one test costs the runner at most
+        :attr:`check_cpu` CPU seconds; the test then fails as a CPU timeout.
+        """
+        def expired(signum: int, frame: object) -> None:
+            raise StudentError(f"the checks of this answer exceeded {self.check_cpu:g} s of the "
+                               f"grader's CPU time", "cpu")
+
+        previous = signal.signal(signal.SIGPROF, expired)
+        signal.setitimer(signal.ITIMER_PROF, self.check_cpu)
+        try:
+            return (yield)
+        finally:
+            signal.setitimer(signal.ITIMER_PROF, 0)
+            signal.signal(signal.SIGPROF, previous)
 
     def pytest_collectreport(self, report: pytest.CollectReport) -> None:
         """Record a test file that could not be collected."""
@@ -168,7 +200,8 @@ def run_exercise(job: dict, ex: dict) -> dict:
                            import_timeout=float(job.get("import_timeout", 30.0)),
                            mode=job.get("isolation", "rlimits"), cgroups=job.get("cgroups"), source=source)
 
-        plugin = GradingPlugin(make_sandbox, float(job.get("timeout", 10.0)), missing)
+        plugin = GradingPlugin(make_sandbox, float(job.get("timeout", 10.0)), missing,
+                               check_cpu=job.get("check_cpu"))
 
         def unchanged() -> bool:
             files = {p.name for p in tests_dir.iterdir()} - {"__pycache__"}
