@@ -181,3 +181,16 @@ def test_payload_in_every_answer_of_every_exercise_is_inert(tmp_path):
             for t in ex.tests:
                 assert not t.passed and t.points == 0, (r.student, ex.name, t.test)
                 assert "Traceback" not in t.reason and "\n" not in t.reason
+
+
+def test_answers_become_numbers_without_reading_text():
+    from mslab.grading.checks import as_count, as_numbers
+
+    assert as_numbers([[1, 2], (3, 4.5)], (2, 2)).tolist() == [[1.0, 2.0], [3.0, 4.5]]
+    assert as_count(np.float64(3.0)) == 3
+    for value in ("0.5", ["0.5"], np.array(["1"]), [True], {"a": 1}, [[1], [1, 2]], np.array([1j])):
+        with pytest.raises(AssertionError, match="expected numbers|ragged"):
+            as_numbers(value)
+    for value in ("7", 7.5, float("inf"), True, [7]):
+        with pytest.raises(AssertionError, match="whole number"):
+            as_count(value)

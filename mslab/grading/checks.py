@@ -38,18 +38,22 @@ def as_numbers(value: Any, shape: tuple | None = None, what: str = "result") -> 
     ``shape`` when given). Strings are refused, never parsed (the trust boundary: nothing
     the student answered is read by a parser that could execute or expand it).
     """
-    def plain(v: Any, depth: int) -> bool:
+    def first_bad(v: Any, depth: int) -> str | None:
+        """Return the type of the first entry that is not a number (None if all are)."""
+        if isinstance(v, np.ndarray):
+            return None if v.dtype.kind in "iuf" else f"an array of {v.dtype}"
         if isinstance(v, list | tuple):
-            return depth < 8 and all(plain(w, depth + 1) for w in v)
-        return isinstance(v, int | float | np.integer | np.floating) and not isinstance(v, bool | np.bool_)
+            if depth >= 8:
+                return "lists nested too deeply"
+            return next((b for w in v if (b := first_bad(w, depth + 1)) is not None), None)
+        if isinstance(v, int | float | np.integer | np.floating) and not isinstance(v, bool | np.bool_):
+            return None
+        return type(v).__name__
 
-    if isinstance(value, np.ndarray):
-        ok = value.dtype.kind in "iuf"
-    else:
-        ok = isinstance(value, list | tuple) and plain(value, 0)
-    if not ok:
-        kind = value.dtype if isinstance(value, np.ndarray) else type(value).__name__
-        raise AssertionError(f"{what}: expected numbers, got {kind}")
+    bad = first_bad(value, 0) if isinstance(value, np.ndarray | list | tuple) else type(value).__name__
+    if bad is not None:
+        inside = "" if not isinstance(value, list | tuple) else f" inside a {type(value).__name__}"
+        raise AssertionError(f"{what}: expected numbers, got {bad}{inside}")
     try:
         out = np.array(value, dtype=float)
     except ValueError:
