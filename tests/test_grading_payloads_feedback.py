@@ -3,7 +3,7 @@
 - Each test isolates one idea: a wrong start-up of exercise 05 fails the start-up's tests,
   not the tests of the steps (which start from the library's start-up).
 - A common mistake is named in one line: the two symplectic Eulers swapped, Heun and the
-  midpoint method swapped.
+  midpoint method swapped; a student's local run shows one line per failure, no traceback.
 - Every exercise's README states the points the grader awards (public, hidden, total),
   read here from the tests themselves.
 """
@@ -11,6 +11,9 @@
 from __future__ import annotations
 
 import re
+import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 from mslab.grading import find_exercises, grade
@@ -62,3 +65,19 @@ def test_swapped_methods_are_named(tmp_path):
         tests["test_public.py::test_heun_matches_the_library"].reason
     assert "likely mistake: this is Heun's step" in \
         tests["test_public.py::test_midpoint_matches_the_library"].reason
+
+
+def test_a_local_run_gives_one_line_per_failure_not_a_traceback(tmp_path):
+    # what a student sees running the public tests on their folder
+    for name in ("pytest.ini", "conftest.py"):
+        shutil.copy(SOURCE / name, tmp_path / name)
+    shutil.copytree(SOURCE / "02_euler_steps", tmp_path / "02_euler_steps",
+                    ignore=shutil.ignore_patterns("test_hidden*", "__pycache__"))
+    module = tmp_path / "02_euler_steps" / "euler_steps.py"
+    module.write_text(module.read_text() + "\n\n_a, _b = symplectic_euler_step, symplectic_euler_x_step\n"
+                      "symplectic_euler_step, symplectic_euler_x_step = _b, _a\n")
+    out = subprocess.run([sys.executable, "-m", "pytest", "02_euler_steps", "-p", "no:randomly"],
+                         cwd=tmp_path, capture_output=True, text=True, timeout=300).stdout
+    assert "2 failed, 1 passed" in out, out
+    assert out.count("likely mistake: the two symplectic Eulers are swapped") >= 2, out
+    assert not [line for line in out.splitlines() if line.startswith((">", "    def ", "Traceback"))], out

@@ -22,12 +22,12 @@ def one_step(student, name, prob, dt, x=None, v=None):
 #: the common mistakes of each step, as (hint, method whose step that mistake takes)
 MISTAKES = {
     "symplectic_euler": lambda prob, v0, dt: {
-        "the two symplectic Eulers are swapped (this one updates v first, then x with the new v)":
+        "the two symplectic Eulers are swapped (symplectic_euler_step updates v first, x with the new v)":
             reference_run("symplectic_euler_x", prob, prob.x0, v0, dt),
         "x moved with the old velocity (that is forward Euler)":
             reference_run("euler", prob, prob.x0, v0, dt)},
     "symplectic_euler_x": lambda prob, v0, dt: {
-        "the two symplectic Eulers are swapped (this one updates x first, then v at the new x)":
+        "the two symplectic Eulers are swapped (symplectic_euler_x_step updates x first, v at the new x)":
             reference_run("symplectic_euler", prob, prob.x0, v0, dt),
         "v updated at the old position (that is forward Euler)":
             reference_run("euler", prob, prob.x0, v0, dt)},
