@@ -47,6 +47,8 @@ def test_a_wrong_start_fails_only_the_tests_of_the_start(tmp_path):
     failed = {k for k, t in tests.items() if not t.passed}
     assert failed == {"test_public.py::test_verlet_start_is_the_backward_taylor_step",
                       "test_hidden.py::test_verlet_and_leapfrog_give_the_same_positions"}, failed
+    reason = tests["test_public.py::test_verlet_start_is_the_backward_taylor_step"].reason
+    assert "likely mistake: the h^2/2 a term is missing" in reason, reason
 
 
 def test_swapped_methods_are_named(tmp_path):

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from mslab.grading.checks import check_array, check_shape, reference_run
+from mslab.grading.checks import check_array, check_known, check_shape, reference_run
 from mslab.grading.problems import problem
 
 MODULE = "verlet_leapfrog"
@@ -20,7 +20,12 @@ def test_verlet_start_is_the_backward_taylor_step(student):
     prob, v0 = start_state()
     ref = reference_run("verlet", prob, prob.x0, v0, 0.01, steps=0)
     x_prev = student.verlet_start(prob.x0, v0, prob, 0.01)
-    check_array(x_prev, ref.memory[0], what="x_prev")
+    h, a0 = 0.01, prob(prob.x0)
+    rule = "(x_-1 = x_0 - h v_0 + h^2/2 a_0)"
+    check_known((x_prev,), (ref.memory[0],), whats=("x_prev",), mistakes={
+        f"the h^2/2 a term is missing {rule}": (prob.x0 - h * v0,),
+        f"a forward step, not a backward one {rule}": (prob.x0 + h * v0 + h * h / 2 * a0,),
+        f"the sign of the h^2/2 a term {rule}": (prob.x0 - h * v0 - h * h / 2 * a0,)})
 
 
 @pytest.mark.points(2)
@@ -38,7 +43,10 @@ def test_verlet_steps_match_the_library(student):
 def test_leapfrog_start_is_half_an_euler_step(student):
     prob, v0 = start_state()
     start = reference_run("leapfrog", prob, prob.x0, v0, 0.01, steps=0)
-    check_array(student.leapfrog_start(prob.x0, v0, prob, 0.01), start.memory[0], what="v_half")
+    h, a0 = 0.01, prob(prob.x0)
+    check_known((student.leapfrog_start(prob.x0, v0, prob, h),), (start.memory[0],), whats=("v_half",),
+                mistakes={"a whole Euler step, not half of one (v_1/2 = v_0 + h/2 a_0)": (v0 + h * a0,),
+                          "the start velocity itself: v_1/2 needs half a step of a_0": (v0,)})
 
 
 @pytest.mark.points(1)

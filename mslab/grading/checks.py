@@ -194,19 +194,27 @@ def observed_order(run: Callable[[int], list], prob: Problem, v0: np.ndarray, t_
     return fitted_order([t_end / n for n in steps], errors)
 
 
-def check_step(x: Any, v: Any, ref: State, mistakes: dict[str, State] | None = None,
-               rtol: float = 1e-10, atol: float = 1e-12) -> None:
-    """``(x, v)`` must be the step ``ref``; a wrong one that is a known mistake's says which, in one line.
+def check_known(outs: tuple, expected: tuple, mistakes: dict[str, tuple] | None = None,
+                whats: tuple[str, ...] = ("result",), rtol: float = 1e-10, atol: float = 1e-12) -> None:
+    """Each of ``outs`` must be close to its ``expected``; a known mistake's answer is named.
 
-    ``mistakes`` maps a one-line hint (e.g. "the two symplectic Eulers are swapped") to
-    the state that mistake produces; checked only once the answer is wrong.
+    The failure is one line. ``mistakes`` maps a one-line hint (e.g. "the two symplectic
+    Eulers are swapped") to the answers that mistake produces; they are compared only once
+    the answer is wrong.
     """
     try:
-        check_array(x, ref.x, rtol=rtol, atol=atol, what="x_new")
-        check_array(v, ref.v, rtol=rtol, atol=atol, what="v_new")
+        for out, exp, what in zip(outs, expected, whats, strict=True):
+            check_array(out, exp, rtol=rtol, atol=atol, what=what)
     except AssertionError as err:
         for hint, wrong in (mistakes or {}).items():
-            if all(isinstance(a, np.ndarray) and a.shape == b.shape
-                   and np.allclose(a, b, rtol=1e-8, atol=1e-10) for a, b in ((x, wrong.x), (v, wrong.v))):
+            if all(isinstance(a, np.ndarray) and a.shape == np.shape(b)
+                   and np.allclose(a, b, rtol=1e-8, atol=1e-10) for a, b in zip(outs, wrong, strict=True)):
                 raise AssertionError(f"{str(err).splitlines()[0]}: likely mistake: {hint}") from None
         raise
+
+
+def check_step(x: Any, v: Any, ref: State, mistakes: dict[str, State] | None = None,
+               rtol: float = 1e-10, atol: float = 1e-12) -> None:
+    """``(x, v)`` must be the step ``ref``; :func:`check_known` with the states of known mistakes."""
+    check_known((x, v), (ref.x, ref.v), {h: (w.x, w.v) for h, w in (mistakes or {}).items()},
+                ("x_new", "v_new"), rtol=rtol, atol=atol)
