@@ -26,6 +26,7 @@ from __future__ import annotations
 import os
 from typing import TYPE_CHECKING
 
+from mslab import jit
 from mslab.fast.model import ForceModel, kernel_reason
 from mslab.fast.runner import Stepper
 
@@ -126,6 +127,8 @@ def stepper(system: System, integrator: Integrator, backend: str | None = None, 
         if (name == "auto" and n_steps is not None and not getattr(integrator, "compiled_only", False)
                 and not worth_compiling(system, integrator, n_steps, state0)):
             return None
+        if not jit.available():  # numba missing: "numba" one clear error, "auto" the numpy loop
+            return jit.without_numba(name)
         runner = Stepper(system, integrator)
         runner.warm()  # loading or compiling is not stepping: out of the run's wall time
     except OSError as err:  # no folder for the generated loops (compose.cache_dir)
