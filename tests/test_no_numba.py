@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 import mslab
+from mslab import jit
 from mslab.scenes import generators
 
 BLOCK = """
@@ -54,7 +55,8 @@ def test_auto_falls_back_to_numpy_with_one_notice():
     assert len(out["notes"]) == 1 and "numba is not installed" in out["notes"][0]
     assert "slower" in out["notes"][0]  # what it costs
     cloth = generators.cloth(64, 64)
-    assert mslab.Simulation(cloth, "symplectic_euler", dt=1e-4, t_end=1.0, check_stability=False).compiled
+    if jit.available():  # here (not in make test-minimal's venv) the same session compiles
+        assert mslab.Simulation(cloth, "symplectic_euler", dt=1e-4, t_end=1.0, check_stability=False).compiled
     here = mslab.Simulation(cloth, "symplectic_euler", dt=1e-4, t_end=1.0, backend="numpy",
                             check_stability=False)
     here.advance(3)
