@@ -4,8 +4,9 @@ Decision (documented in the README): the numpy code in ``mslab/effects`` and
 ``mslab/integrators`` is the readable reference. Each effect may define its force once more
 as a numba-style ``kernel`` (in its own module); :mod:`mslab.fast.compose` sums the kernels
 of a scene into the generic loops of :mod:`mslab.fast.loops` (one per method family) and
-numba compiles and caches them. The tests hold both paths equal (1e-12). numba is a
-required dependency (``pyproject.toml``): there is no "numba missing" path.
+numba compiles and caches them. The tests hold both paths equal (1e-12). Without numba
+``"auto"`` takes the numpy loop (one ``PerformanceWarning``) and ``"numba"`` is refused
+(:func:`mslab.jit.without_numba`).
 
 Which path runs is the *backend*, an argument fixed when the stepper is built
 (``simulate(..., backend=...)``; ``None`` reads the environment variable
