@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-emulated lint lessons lab site bench clean venv docs
+.PHONY: demo test test-emulated test-minimal lint lessons lab site bench clean venv docs
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -35,6 +35,7 @@ test: $(STAMP) docs
 	$(PY) $(PYTEST_2) $(NBVAL) tests lessons/
 	$(PY) tools/lessons_check.py
 	$(MAKE) --no-print-directory test-emulated
+	$(MAKE) --no-print-directory test-minimal
 
 # An emulated other CPU (README, "Testing on any machine"): numpy's runtime dispatch without
 # AVX-512, numba compiling for a generic x86-64, OpenBLAS kernels of an older core, a fresh
@@ -53,6 +54,26 @@ EMULATED_TESTS := tests/test_implicit_cloth.py tests/test_newton_matrix.py tests
 test-emulated: $(STAMP)
 	$(EMULATED_CPU) $(PY) $(PYTEST_2) -p no:cacheprovider $(NBVAL) $(EMULATED_TESTS) lessons/
 	rm -rf $(EMULATED_CACHE)
+
+# mslab where numba and cvxopt are not installed (a locked-down lab image): a second venv with
+# pyproject's dependencies but those two, running tests that need neither (backend "auto" falls
+# back to the numpy loops and scipy's sparse solvers; "numba" says what is missing).
+MINIMAL := .venv-minimal
+MINIMAL_DEPS := $(shell $(PYTHON) -c "import tomllib; print(' '.join(repr(d) for d in \
+	tomllib.load(open('pyproject.toml', 'rb'))['project']['dependencies'] \
+	if d.split('>')[0].split('=')[0] not in ('numba', 'cvxopt')))")
+MINIMAL_TESTS := tests/test_no_numba.py tests/test_stability_exact.py tests/test_simulate.py \
+	tests/test_scenes.py tests/test_integrators.py
+$(MINIMAL)/.installed: pyproject.toml
+	test -x $(MINIMAL)/bin/python || $(PYTHON) -m venv $(MINIMAL)
+	$(MINIMAL)/bin/python -m pip install --quiet --upgrade pip
+	$(MINIMAL)/bin/python -m pip install --quiet $(MINIMAL_DEPS) pytest hypothesis
+	$(MINIMAL)/bin/python -m pip install --quiet --no-deps -e .
+	! $(MINIMAL)/bin/python -c "import numba" 2>/dev/null && ! $(MINIMAL)/bin/python -c "import cvxopt" 2>/dev/null
+	touch $@
+
+test-minimal: $(MINIMAL)/.installed
+	$(MINIMAL)/bin/python -m pytest -q -p no:randomly -p no:cacheprovider $(MINIMAL_TESTS)
 
 # markdown sentences with a number or verdict that no claim of the notebook backs (tools/lessons_check.py)
 .PHONY: lessons-check
@@ -87,4 +108,4 @@ bench: $(STAMP)
 	$(PY) -m mslab.cli bench
 
 clean:
-	rm -rf $(VENV) out site .pytest_cache
+	rm -rf $(VENV) $(MINIMAL) out site .pytest_cache

@@ -63,6 +63,10 @@ class StabilityWarning(UserWarning):
     """The chosen dt exceeds the predicted stable step; the run goes on."""
 
 
+class PerformanceWarning(UserWarning):
+    """A run takes a slower path than it could (e.g. numba is not installed)."""
+
+
 class BrokenFileWarning(UserWarning):
     """A method or effect file could not be loaded; it is skipped and everything else works.
 

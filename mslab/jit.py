@@ -43,8 +43,51 @@ def announce_with(announcer: Callable[[str, str], AbstractContextManager] | None
     return previous
 
 
+#: what running without numba costs, said once per process where ``auto`` would have compiled
+MISSING = ("numba is not installed: backend 'auto' runs the numpy loops instead of the compiled ones "
+           "(10-100x slower on scenes of thousands of springs; the same results to round-off); "
+           "pip install numba to get them")
+
+
+def available() -> bool:
+    """Tell whether numba can be imported (once per process; no import of it before it is needed)."""
+    if not _available:
+        try:
+            numba()
+            _available.append(True)
+        except ModuleNotFoundError:
+            _available.append(False)
+    return _available[0]
+
+
+_available: list[bool] = []
+
+
+def without_numba(backend: str) -> None:
+    """Refuse ``backend="numba"`` without numba (one clear error); for ``"auto"`` say once what it costs.
+
+    Called where the compiled loop was chosen; returns None (the numpy loop) for ``"auto"``.
+    """
+    import warnings
+
+    from mslab.errors import PerformanceWarning
+
+    if backend == "numba":
+        raise ModuleNotFoundError("backend 'numba' needs numba, which is not installed: pip install numba, "
+                                  "or use backend='numpy' (or 'auto', which falls back to it)", name="numba")
+    if not _warned:
+        _warned.append(True)
+        warnings.warn(MISSING, PerformanceWarning, stacklevel=2)
+
+
+_warned: list[bool] = []
+
+
 def numba() -> Any:
-    """Return the numba module, imported (protected from Ctrl-C) on first use."""
+    """Return the numba module, imported (protected from Ctrl-C) on first use.
+
+    ModuleNotFoundError when numba is not installed (:func:`available` tells first).
+    """
     if not _listening:
         # numba's OpenMP threads sleep between parallel loops instead of spinning (unless the
         # user chose): spinning threads made the spring loop 20-150x slower on a loaded 2-core
@@ -124,6 +167,8 @@ def compiled(function: Callable, what: str | None = None, *, helpers: bool = Tru
     """
     key = (function, helpers, tuple(sorted(options.items())))
     fast = _COMPILED.get(key)
+    if fast is None and not available():  # the plain Python function: the same code, slowly
+        _COMPILED[key] = fast = function
     if fast is None:
         target, flags = _resolved(function, options, helpers)
         if flags.get("parallel"):
@@ -166,7 +211,7 @@ def thread_count(requested: int | None = None) -> int | None:
 @contextmanager
 def threads(count: int | None) -> Iterator[None]:
     """Run the enclosed compiled calls on ``count`` threads (None: leave numba's setting)."""
-    if count is None:
+    if count is None or not available():
         yield
         return
     nb = numba()

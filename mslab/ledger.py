@@ -130,3 +130,110 @@ def initial_energy_scale(scene: Scene) -> float:
     drop = sum(float(e.releasable_energy(movable, size)) for e in system.effects
                if hasattr(e, "releasable_energy"))
     return system.kinetic_energy(v0) + abs(system.potential_energy(x0)) + drop
+
+
+#: at most this many energy groups are judged apart (more components are pooled round-robin:
+#: each group costs one potential-energy evaluation per ledger check)
+MAX_GROUPS = 8
+
+
+def energy_groups(scene: Scene) -> np.ndarray | None:
+    """Return a group label per particle: the particles no effect couples are judged apart.
+
+    Two particles are coupled when an effect joins them: a spring's pair (its damping acts
+    along the same pair), else a Jacobian block (``df_i/dx_j`` or ``df_i/dv_j``) at the initial
+    state; gravity, drag and colliders (``constant_force``, ``linear_drag``, ``outline``) act
+    on each particle alone. No energy flows between groups: each group's ledger is constant
+    for the exact motion on its own. Connected components, pooled round-robin into
+    :data:`MAX_GROUPS`. None: one group (or an effect without Jacobians).
+    """
+    system, x0, v0 = scene.system, scene.state0.x, scene.state0.v
+    n, dim = system.n_particles, system.dim
+    rows, cols = [np.arange(n)], [np.arange(n)]
+    for effect in system.effects:
+        springs = effect.hooke_springs()
+        if springs is not None:
+            rows.append(np.asarray(springs.i))
+            cols.append(np.asarray(springs.j))
+            continue
+        if (effect.constant_force() is not None or effect.linear_drag() is not None
+                or effect.outline() is not None):
+            continue
+        try:
+            blocks = effect.jacobians(x0, v0)
+        except NotImplementedError:
+            return None
+        for block in blocks:
+            if block is not None:
+                coo = block.tocoo()
+                rows.append(coo.row // dim)
+                cols.append(coo.col // dim)
+    labels = _components(n, np.concatenate(rows), np.concatenate(cols))
+    return None if labels.max() == 0 else labels % MAX_GROUPS
+
+
+def _components(n: int, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+    """Return the connected component (0, 1, ...) of each of ``n`` nodes joined by the edges ``(i, j)``.
+
+    Hooking every edge's larger root onto its smaller one, then pointer jumping, until no
+    edge joins two roots (numpy only: no scipy import for the common scene).
+    """
+    root = np.arange(n)
+    while True:
+        ri, rj = root[i], root[j]
+        if np.array_equal(ri, rj):
+            break
+        low = np.minimum(ri, rj)
+        np.minimum.at(root, ri, low)
+        np.minimum.at(root, rj, low)
+        while True:
+            jumped = root[root]
+            if np.array_equal(jumped, root):
+                break
+            root = jumped
+    return np.unique(root, return_inverse=True)[1]
+
+
+def group_scales(scene: Scene, labels: np.ndarray) -> np.ndarray:
+    """Return each group's energy scale: :func:`initial_energy_scale` of its own particles.
+
+    ``K0 + sum_fields m |g| L`` of the group (``L = 1 + max |x0|`` over it), plus its mass
+    share of the other effects' ``|U0|`` (springs, contacts: not split by particle).
+    """
+    system, x0, v0 = scene.system, scene.state0.x, scene.state0.v
+    free = ~system.pinned
+    total_mass = float(np.sum(system.mass[free])) or 1.0
+    u0 = abs(sum(float(e.energy(x0)) for e in system.effects  # fields' energy is in `drop`
+                 if e.conservative and not hasattr(e, "releasable_energy")))
+    scales = np.zeros(int(labels.max()) + 1)
+    for g in range(scales.size):
+        mine = labels == g
+        size = 1.0 + float(np.max(np.abs(x0[mine]))) if mine.any() else 1.0
+        movable = mine & free
+        drop = sum(float(e.releasable_energy(movable, size)) for e in system.effects
+                   if hasattr(e, "releasable_energy"))
+        share = float(np.sum(system.mass[movable])) / total_mass
+        scales[g] = float(0.5 * np.sum(system.mass[movable, None] * v0[movable] ** 2)) + drop + share * u0
+    return scales
+
+
+def group_ledgers(system: System, labels: np.ndarray, x: np.ndarray, v: np.ndarray,
+                  x0: np.ndarray) -> np.ndarray:
+    """Return ``K + (U - U(x0)) - W_ext`` of each group (the others held at ``x0``).
+
+    Groups exchange no energy, so each is constant for the exact motion up to the work its
+    dissipation removed (the dissipated work is integrated for the whole scene, not per group:
+    a group's ledger can only fall by it, and only gains count).
+    """
+    free = ~system.pinned
+    u_start = system.potential_energy(x0)
+    out = np.zeros(int(labels.max()) + 1)
+    for g in range(out.size):
+        mine = labels == g
+        mixed = x0.copy()
+        mixed[mine] = x[mine]
+        kinetic = float(0.5 * np.sum(system.mass[mine & free, None] * v[mine & free] ** 2))
+        out[g] = kinetic + system.potential_energy(mixed) - u_start
+        if system.driving:
+            out[g] -= system.external_work(mixed, x0)
+    return out

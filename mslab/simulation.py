@@ -111,7 +111,7 @@ class Simulation:
         self.stats = Stats(method=self.integrator.name, dt=self.dt)
         self._samples = Samples(self.system, scene.state0.x.shape, self.save_every, self.end)
         self._check = LedgerCheck(initial_energy_scale(scene), energy_blowup, self.integrator.n_stages,
-                                  self.end)
+                                  self.end, scene)
         self._limit = position_limit(scene, blowup)
         self._loop: NumpyLoop | CompiledLoop | None = None
         self._failed: Exception | None = None
@@ -288,7 +288,7 @@ class Simulation:
         total = kinetic + float(system.potential_energy(loop.x)) + loop.dissipated
         if system.driving:
             total -= float(system.external_work(loop.x, self._samples.x[0]))
-        reason = self._check.check(loop.step, total, kinetic)
+        reason = self._check.check(loop.step, total, kinetic, loop.x, loop.v)
         if reason is not None:
             raise _LedgerGrew(reason)
 

@@ -107,16 +107,30 @@ class LedgerCheck:
     to the positions and to :meth:`over`, the bound ``energy_blowup`` (default 1e4) on the
     saved samples' ledger. Only gains count.
 
+    **Groups** (:func:`mslab.ledger.energy_groups`): particles no effect couples exchange no
+    energy, so each group's ledger ``K + U - W_ext`` (the others held at ``x0``) is judged so
+    against the group's own scale (:func:`mslab.ledger.group_scales`): a resting particle
+    bouncing away on its contact is seen even where a heavy fast body elsewhere makes the
+    scene's energy scale large. One group: the whole ledger against ``scale``.
+
     ``scale`` is :func:`mslab.ledger.initial_energy_scale`; a scene that starts at rest with
     nothing to release (scale 0: a wind drives it) uses the largest kinetic energy checked
     so far. ``energy_blowup = inf`` turns the check off.
     """
 
-    def __init__(self, scale: float, energy_blowup: float, n_stages: int, end: int | None):
+    def __init__(self, scale: float, energy_blowup: float, n_stages: int, end: int | None,
+                 scene: Scene | None = None):
+        from mslab.ledger import energy_groups, group_ledgers, group_scales
+
         self.scale, self.energy_blowup, self.end = scale, energy_blowup, end
         self.on = not math.isinf(energy_blowup)
         #: steps between two checks (after the doubling ones)
         self.every = max(1, CHECK_EVALS // max(1, n_stages))
+        self._groups = energy_groups(scene) if scene is not None and self.on else None
+        if self._groups is not None:
+            self._system, self._x0, self._ledgers = scene.system, scene.state0.x, group_ledgers
+            self._scales = group_scales(scene, self._groups)
+            self._g0 = group_ledgers(self._system, self._groups, self._x0, scene.state0.v, self._x0)
         self.start(0.0)
 
     def due(self, step: int) -> bool:
@@ -137,38 +151,23 @@ class LedgerCheck:
     def start(self, total: float) -> None:
         """Record ``E(0)``."""
         self._e0, self._k_max = total, 0.0
-        self._rise = (0, 0.0, 0.0, 0)  # (first step, first |E - E0|, peak |E - E0|, checks)
-        self._risen: tuple | None = None  # (step, E - E0, rise's first step and |E - E0|, checks since)
+        self._watch = [_Saturation() for _ in range(1 if self._groups is None else self._scales.size)]
 
-    def check(self, step: int, total: float, kinetic: float) -> str | None:
-        """Record ``E(step)``; return why the run is unstable there, or None."""
+    def check(self, step: int, total: float, kinetic: float, x: np.ndarray | None = None,
+              v: np.ndarray | None = None) -> str | None:
+        """Record ``E(step)`` (groups: their ledgers at ``x, v``); return why the run is unstable, or None."""
         self._k_max = max(self._k_max, kinetic)
-        scale = self.scale if self.scale > 0 else self._k_max
-        if not scale > 0:
-            return None
-
-        change = total - self._e0
-        growth = change / scale
-        size = abs(change) if abs(change) > FLOOR * scale else 0.0
-        first, low, peak, count = self._rise
-        if size > 0 and count and size >= KEEP * peak:
-            self._rise = (first, low, max(peak, size), count + 1)
-        else:
-            self._rise = (step, size, size, 1 if size > 0 else 0)
-        first, low, peak, count = self._rise
-        risen = self._risen
-        if risen is not None and size <= PLATEAU * risen[1]:
-            at, level, since, low, n = self._risen = (*risen[:4], risen[4] + 1)
-            if step - at >= at - since and n >= RISE_CHECKS:
-                return (f"grew by {level / scale:.3g} x the scene's energy scale by step {at}, rising "
-                        f"{level / low:.3g} x since step {since}, and stayed there up to step {step} "
-                        f"(now {growth:.3g} x): an instability whose amplitude saturated, so the "
-                        f"positions stayed bounded (e.g. stiff springs swinging through zero length, a "
-                        f"contact bouncing)")
-        elif growth > LEVEL and count >= RISE_CHECKS and change >= GROWTH * low:
-            self._risen = (step, change, first, low, 0)  # risen; a plateau must follow
-        else:
-            self._risen = None
+        fallback = self.scale if self.scale > 0 else self._k_max
+        if self._groups is None or x is None:
+            return self._watch[0].update(step, total - self._e0, fallback, "the scene's")
+        changes = self._ledgers(self._system, self._groups, x, v, self._x0) - self._g0
+        for g, (watch, change) in enumerate(zip(self._watch, changes, strict=True)):
+            scale = self._scales[g] if self._scales[g] > 0 else fallback
+            who = (f"the energy scale of particles {np.flatnonzero(self._groups == g)[:5].tolist()} (a group "
+                   f"no effect couples to the rest: no energy flows in or out); its")
+            reason = watch.update(step, float(change), scale, who)
+            if reason is not None:
+                return reason
         return None
 
     def over(self, total: np.ndarray, first: int, scale: float) -> int | None:
@@ -181,3 +180,38 @@ class LedgerCheck:
         growth = (total[first:] - total[0]) / scale
         bad = np.flatnonzero(~(growth <= self.energy_blowup))
         return first + int(bad[0]) if bad.size else None
+
+
+class _Saturation:
+    """The saturation rule of :class:`LedgerCheck` for one ledger (the scene's, or a group's)."""
+
+    def __init__(self):
+        self._rise = (0, 0.0, 0.0, 0)  # (first step, first |E - E0|, peak |E - E0|, checks)
+        self._risen: tuple | None = None  # (step, E - E0, rise's first step and |E - E0|, checks since)
+
+    def update(self, step: int, change: float, scale: float, who: str) -> str | None:
+        """Record the ledger's change ``E - E(0)`` at ``step``; return why the run is unstable, or None."""
+        if not scale > 0:
+            return None
+        growth = change / scale
+        size = abs(change) if abs(change) > FLOOR * scale else 0.0
+        first, low, peak, count = self._rise
+        if size > 0 and count and size >= KEEP * peak:
+            self._rise = (first, low, max(peak, size), count + 1)
+        else:
+            self._rise = (step, size, size, 1 if size > 0 else 0)
+        first, low, peak, count = self._rise
+        risen = self._risen
+        if risen is not None and size <= PLATEAU * risen[1]:
+            at, level, since, low, n = self._risen = (*risen[:4], risen[4] + 1)
+            if step - at >= at - since and n >= RISE_CHECKS:
+                return (f"grew by {level / scale:.3g} x {who} energy scale by step {at}, rising "
+                        f"{level / low:.3g} x since step {since}, and stayed there up to step {step} "
+                        f"(now {growth:.3g} x): an instability whose amplitude saturated, so the "
+                        f"positions stayed bounded (e.g. stiff springs swinging through zero length, a "
+                        f"contact bouncing)")
+        elif growth > LEVEL and count >= RISE_CHECKS and change >= GROWTH * low:
+            self._risen = (step, change, first, low, 0)  # risen; a plateau must follow
+        else:
+            self._risen = None
+        return None

@@ -4,8 +4,9 @@ Decision (documented in the README): the numpy code in ``mslab/effects`` and
 ``mslab/integrators`` is the readable reference. Each effect may define its force once more
 as a numba-style ``kernel`` (in its own module); :mod:`mslab.fast.compose` sums the kernels
 of a scene into the generic loops of :mod:`mslab.fast.loops` (one per method family) and
-numba compiles and caches them. The tests hold both paths equal (1e-12). numba is a
-required dependency (``pyproject.toml``): there is no "numba missing" path.
+numba compiles and caches them. The tests hold both paths equal (1e-12). Without numba
+``"auto"`` takes the numpy loop (one ``PerformanceWarning``) and ``"numba"`` is refused
+(:func:`mslab.jit.without_numba`).
 
 Which path runs is the *backend*, an argument fixed when the stepper is built
 (``simulate(..., backend=...)``; ``None`` reads the environment variable
@@ -26,6 +27,7 @@ from __future__ import annotations
 import os
 from typing import TYPE_CHECKING
 
+from mslab import jit
 from mslab.fast.model import ForceModel, kernel_reason
 from mslab.fast.runner import Stepper
 
@@ -126,6 +128,8 @@ def stepper(system: System, integrator: Integrator, backend: str | None = None, 
         if (name == "auto" and n_steps is not None and not getattr(integrator, "compiled_only", False)
                 and not worth_compiling(system, integrator, n_steps, state0)):
             return None
+        if not jit.available():  # numba missing: "numba" one clear error, "auto" the numpy loop
+            return jit.without_numba(name)
         runner = Stepper(system, integrator)
         runner.warm()  # loading or compiling is not stepping: out of the run's wall time
     except OSError as err:  # no folder for the generated loops (compose.cache_dir)

@@ -95,8 +95,46 @@ def imag_limit_of(p: TableauPolynomials, A: Sequence[Sequence[Any]], b: Sequence
     return _first_crossing([Fraction(c) for c in E[nonzero[0]:]])
 
 
+def real_interval_of(p: TableauPolynomials, A: Sequence[Sequence[Any]], b: Sequence[Any]) -> float:
+    """Left end ``-s`` of the real stability interval ``[-s, 0]`` of a tableau (``-inf``: whole axis).
+
+    ``|R(-t)| <= 1`` is ``F(t) = N(-t)^2 - D(-t)^2 <= 0`` (a pole of ``R`` makes ``F > 0``);
+    ``F(0) = 0``, so ``F(t) / t``, whose value at 0 is ``-2 R'(0)`` (negative for a consistent
+    method), is examined; its smallest positive root where it turns positive, isolated
+    exactly as for the imaginary limit, is ``s`` (0 when ``F / t`` starts positive). Float
+    coefficients: coefficients of ``F`` at the rounding level of the products forming them
+    are zero (a rounded ``|R(-inf)| = 1`` is no root near 1e15).
+    """
+    N, D = list(p.N), list(p.D)
+    F = _minus(_mul(_reflect(N), _reflect(N)), _mul(_reflect(D), _reflect(D)))
+    if not p.exact:
+        absolute = [[abs(as_fraction(v)[0]) for v in row] for row in A], [abs(as_fraction(v)[0]) for v in b]
+        N_abs, D_abs = stability_polynomials(*absolute) if len(D) == 1 else (N, D)
+        a, d = (np.abs(np.array([float(c) for c in q])) for q in (N_abs, D_abs))
+        size = np.convolve(a, a) + np.pad(np.convolve(d, d), (0, 2 * (len(a) - len(d))))
+        F = [0 if abs(float(c)) <= 64 * _EPS * size[k] else c for k, c in enumerate(F)]
+    nonzero = [k for k, c in enumerate(F) if c != 0]
+    if not nonzero:
+        return -math.inf                    # |R| = 1 on the whole axis
+    if F[nonzero[0]] > 0:
+        return 0.0
+    root = _first_root([Fraction(c) for c in F[nonzero[0]:]])
+    return -math.inf if root is None else -float(root)
+
+
+def _reflect(p: list) -> list:
+    """Coefficients of ``p(-t)`` (ascending)."""
+    return [c * (-1) ** k for k, c in enumerate(p)]
+
+
 def _first_crossing(F: list[Fraction]) -> float:
-    """Return sqrt of the smallest positive root of odd multiplicity of ``F`` (``F(0) < 0``), or inf.
+    """Return sqrt of the smallest positive root of odd multiplicity of ``F`` (``F(0) < 0``), or inf."""
+    root = _first_root(F)
+    return math.inf if root is None else math.sqrt(float(root))
+
+
+def _first_root(F: list[Fraction]) -> Fraction | None:
+    """Return the smallest positive root of odd multiplicity of ``F`` (``F(0) < 0``), or None.
 
     Exact real-root isolation in rational arithmetic (``fractions.Fraction``, no sympy): the
     Sturm sequence of the square-free part ``G = F / gcd(F, F')`` counts the distinct roots
@@ -106,7 +144,7 @@ def _first_crossing(F: list[Fraction]) -> float:
     """
     G = _quotient(F, _gcd(F, _derivative(F)))
     if len(G) == 1:
-        return math.inf                                 # no real root at all
+        return None                                     # no real root at all
     sturm = _sturm(G)
     bound = 1 + max(abs(c / G[-1]) for c in G[:-1])   # Cauchy: every root below it
     lo = Fraction(0)
@@ -131,9 +169,9 @@ def _first_crossing(F: list[Fraction]) -> float:
         root = (a + b) / 2
         width = max(b - a, Fraction(1, 10**30) * max(root, Fraction(1)))
         if _sign(_eval(F, root - width)) != _sign(_eval(F, root + width)):
-            return math.sqrt(float(root))
+            return root
         lo = b                                          # a touching root: look further out
-    return math.inf
+    return None
 
 
 def _eval(p: list[Fraction], x: Fraction) -> Fraction:

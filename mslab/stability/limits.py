@@ -1,6 +1,9 @@
 """Stability limits along rays: the real interval, the imaginary limit, the oscillator limit.
 
-* Runge-Kutta methods: the imaginary limit is exact (:mod:`mslab.stability.exact`). With
+* Runge-Kutta methods: the imaginary limit and the real interval are exact
+  (:mod:`mslab.stability.exact`; on the real axis ``|R(-t)| <= 1`` is
+  ``N(-t)^2 - D(-t)^2 <= 0``, whose first crossing is isolated the same way, at any size:
+  no narrow unstable gap is stepped over, no interval is capped). With
   ``R = N/D`` (``N(z) = det(I - zA + z 1 b^T)``, ``D(z) = det(I - zA)``), ``|R(iy)| <= 1`` is
   ``E(y) = |N(iy)|^2 - |D(iy)|^2 <= 0``, an even polynomial, formed in rational arithmetic
   from the coefficients as given. For float coefficients, coefficients of ``E`` at their
@@ -26,7 +29,7 @@ import numpy as np
 
 from mslab.integrators.base import Integrator, get_method
 from mslab.integrators.families.polynomials import exact_polynomials
-from mslab.stability.exact import imag_limit_of
+from mslab.stability.exact import imag_limit_of, real_interval_of
 from mslab.stability.functions import amplification, amplification_matrix, spectral_radius, tableau
 
 #: ``rho <= 1 + TOL`` counts as stable in the scans (round-off of near-defective eigenvalues).
@@ -75,6 +78,13 @@ def rk_polynomials(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray
 
 @lru_cache(maxsize=256)
 def _real_interval(m: Integrator) -> float:
+    if tableau(m) is not None:  # exactly, from the coefficients as given
+        return real_interval_of(m.polynomials, m.coefficients["A"], m.coefficients["b"])
+    return scanned_real_interval(m)
+
+
+def scanned_real_interval(m: Integrator) -> float:
+    """Return the real interval's left end scanned on ``|R(-s)|`` (splittings, two-step forms)."""
     return -_ray_limit(lambda s: np.abs(amplification(m, -s)))
 
 

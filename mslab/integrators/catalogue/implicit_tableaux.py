@@ -48,14 +48,16 @@ baraff_witkin = register(ImplicitRK(
     [[1]], [1], name="baraff_witkin", order=1, solver="linearised",
     doc="""Baraff and Witkin's linearised implicit Euler: one Newton step per time step (beyond the course).
 
-    ``(M - h^2 K - h D) dv = h (f(x_n, v_n) + h K v_n)``,  ``v_{n+1} = v_n + dv``,
-    ``x_{n+1} = x_n + h v_{n+1}`` (``K, D`` the Jacobians at ``(x_n, v_n)``): the first Newton
-    iteration of implicit Euler (``implicit_euler``, eq. 27 of the lecture notes) from ``v = v_n``, without
-    the further iterations and without a convergence test. Exact implicit Euler on linear
-    forces (same ``R(z) = 1/(1 - z)``, A-stable); on springs that rotate it deviates from
-    implicit Euler by ``O(h^2)`` per step, so it is still first order, and its cost is fixed:
-    one Jacobian, one linear solve, two force evaluations per step. The classical cloth
-    method. Reference: D. Baraff, A. Witkin, "Large Steps in Cloth Simulation",
+    ``(M - h^2 K - h D) dv = h f(x_n + h v_n, v_n)``,  ``v_{n+1} = v_n + dv``,
+    ``x_{n+1} = x_n + h v_{n+1}`` (``K, D`` the Jacobians at ``(x_n + h v_n, v_n)``): the first
+    Newton iteration of implicit Euler (``implicit_euler``, eq. 27 of the lecture notes) from
+    ``v = v_n``, whose position is ``x_n + h v_n``, without the further iterations and without a
+    convergence test. Baraff and Witkin write the right side ``h (f(x_n, v_n) + h K v_n)`` with
+    ``K, D`` at ``(x_n, v_n)``: the same to first order, and the same on linear forces.
+    Exact implicit Euler on linear forces (same ``R(z) = 1/(1 - z)``, A-stable); on springs
+    that rotate it deviates from implicit Euler by ``O(h^2)`` per step, so it is still first
+    order, and its cost is fixed: one Jacobian, one linear solve, two force evaluations per
+    step. The classical cloth method. Reference: D. Baraff, A. Witkin, "Large Steps in Cloth Simulation",
     SIGGRAPH 1998.
     """))
 
