@@ -79,6 +79,7 @@ class SubmissionResult:
     exercises: list[ExerciseResult] = field(default_factory=list)
     isolation: str = ""
     resources: str = ""
+    isolation_asked: str = "auto"
 
     @property
     def total(self) -> float:
@@ -183,7 +184,7 @@ def _run_chunk(items: list[dict], timeout: float, memory_mb: int, mode: str, cgr
 
 def grade(paths: Iterable[str | Path], source: str | Path, jobs: int | None = None, timeout: float = 10.0,
           memory_mb: int = 1024, only: list[str] | None = None, isolation: str = "auto",
-          require_isolation: bool = False, journal: str | Path | None = None, resume: bool = False,
+          require_isolation: bool = False, journal: str | Path | Journal | None = None, resume: bool = False,
           progress: Callable[[int, int], None] | None = None) -> list[SubmissionResult]:
     """Grade submissions (folders of exercise folders, or classes of such folders).
 
@@ -205,8 +206,10 @@ def grade(paths: Iterable[str | Path], source: str | Path, jobs: int | None = No
     require_isolation : bool
         Refuse (ValueError) rather than grade without namespaces or without a cgroup per
         sandbox (:mod:`mslab.grading.box`).
-    journal : path, optional
-        Append each item's outcome here as it arrives; removed once the class is graded.
+    journal : path or Journal, optional
+        Append each item's outcome here as it arrives (locked: one grader per journal);
+        a path is removed once the class is graded, an open :class:`Journal` is left to
+        its caller (who may write the gradebook before releasing it).
     resume : bool
         Reuse the outcomes already in ``journal`` (same tests, limits and student files).
     progress : callable, optional
@@ -222,17 +225,23 @@ def grade(paths: Iterable[str | Path], source: str | Path, jobs: int | None = No
     if require_isolation and cgroups is None:
         raise ValueError(f"isolation required, but no cgroup can cap each sandbox's processes, memory "
                          f"and CPU share here ({why_not})")
+    book = journal if isinstance(journal, Journal) or journal is None else Journal(journal, resume)
+    finished = False
     try:
-        return _grade(paths, source, jobs, timeout, memory_mb, only, mode, cgroups, why_not, journal,
-                      resume, progress)
+        results = _grade(paths, source, jobs, timeout, memory_mb, only, (mode, isolation), cgroups, why_not,
+                         book, progress)
+        finished = True
+        return results
     finally:
         teardown_cgroups(cgroups)
+        if book is not None and book is not journal:
+            book.close(finished)
 
 
 def _grade(paths: Iterable[str | Path], source: str | Path, jobs: int, timeout: float, memory_mb: int,
-           only: list[str] | None, mode: str, cgroups: dict | None, why_not: str,
-           journal: str | Path | None, resume: bool,
-           progress: Callable[[int, int], None] | None) -> list[SubmissionResult]:
+           only: list[str] | None, modes: tuple[str, str], cgroups: dict | None, why_not: str,
+           book: Journal | None, progress: Callable[[int, int], None] | None) -> list[SubmissionResult]:
+    mode, asked = modes
     exercises = find_exercises(source)
     if only:
         unknown = set(only) - {e.name for e in exercises}
@@ -241,7 +250,8 @@ def _grade(paths: Iterable[str | Path], source: str | Path, jobs: int, timeout: 
         exercises = [e for e in exercises if e.name in only]
     submissions = expand_submissions(paths, exercises)
     clean_stale_folders()
-    book = Journal(journal, fingerprint(exercises, timeout, memory_mb), resume) if journal else None
+    if book is not None:
+        book.bind(fingerprint(exercises, timeout, memory_mb))
     outcomes: dict[str, tuple] = {}
     fixed: dict[tuple, str] = {}
     items, keys = [], {}
@@ -276,24 +286,20 @@ def _grade(paths: Iterable[str | Path], source: str | Path, jobs: int, timeout: 
 
     chunks = [items[j::jobs] for j in range(jobs) if items[j::jobs]]
     STOP.clear()
-    try:
-        with _interrupts(), ThreadPoolExecutor(max_workers=jobs) as pool:
-            futures = [pool.submit(_run_chunk, chunk, timeout, memory_mb, mode, cgroups, on_item)
-                       for chunk in chunks]
-            try:
-                for f in futures:
-                    f.result()
-            except BaseException:
-                STOP.set()
-                raise
-    finally:
-        if book is not None:
-            book.close(finished=False)
+    with _interrupts(), ThreadPoolExecutor(max_workers=jobs) as pool:
+        futures = [pool.submit(_run_chunk, chunk, timeout, memory_mb, mode, cgroups, on_item)
+                   for chunk in chunks]
+        try:
+            for f in futures:
+                f.result()
+        except BaseException:
+            STOP.set()
+            raise
     results = []
     boxed = describe(cgroups, memory_mb) + ("" if cgroups else f" ({why_not})")
     for k, (sub, _) in enumerate(submissions):
         res = SubmissionResult(str(sub), printable(sub.name or str(sub)), isolation=DESCRIPTION[mode],
-                               resources=boxed)
+                               resources=boxed, isolation_asked=asked)
         for ex in exercises:
             if (k, ex.name) in fixed:
                 why = fixed[(k, ex.name)]
