@@ -34,7 +34,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "code runs isolated by the operating system where it can (namespaces), with time "
                     "and memory limits.")
     p.add_argument("submissions", nargs="+", metavar="SUBMISSION",
-                   help="a submission folder (NN_topic/ inside) or a class folder <student>/")
+                   help="a submission folder (NN_topic/FILE inside, or FILE itself with --exercise) "
+                        "or a class folder (see --layout)")
     p.add_argument("--source", default=None,
                    help="the instructor's exercises with all tests (required unless the current "
                         "folder holds them as exercises/)")
@@ -50,6 +51,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--jobs", type=int, default=None, metavar="N", help="parallel runners (default: cores)")
     p.add_argument("--exercise", action="append", default=None, metavar="NAME",
                    help="grade only this exercise (repeatable)")
+    p.add_argument("--layout", default="auto", choices=["auto", "class", "submission"],
+                   help="class: every entry of SUBMISSION is a student's (folder, .zip, .py, .ipynb); "
+                        "submission: SUBMISSION is one student's work; auto (default): one submission "
+                        "if it holds an exercise's file (NN_topic/FILE or FILE itself), else a class")
     p.add_argument("--isolation", default="auto", choices=["auto", "bwrap", "namespaces", "rlimits"],
                    help="how student code is isolated (default: the strongest available)")
     p.add_argument("--require-isolation", action="store_true",
@@ -151,7 +156,8 @@ def _grade(args: argparse.Namespace, source: str | Path, book: Journal | None) -
         return grade(args.submissions, source=source, jobs=args.jobs, timeout=args.timeout,
                      memory_mb=args.memory, only=args.exercise, isolation=args.isolation,
                      require_isolation=args.require_isolation, journal=book, resume=args.resume,
-                     progress=progress)
+                     progress=progress, layout=args.layout,
+                     ignore=[p for p in (args.csv, book.path if book else None) if p])
     except ValueError as err:
         raise CommandError(str(err)) from None
     except KeyboardInterrupt:

@@ -185,7 +185,8 @@ def _run_chunk(items: list[dict], timeout: float, memory_mb: int, mode: str, cgr
 def grade(paths: Iterable[str | Path], source: str | Path, jobs: int | None = None, timeout: float = 10.0,
           memory_mb: int = 1024, only: list[str] | None = None, isolation: str = "auto",
           require_isolation: bool = False, journal: str | Path | Journal | None = None, resume: bool = False,
-          progress: Callable[[int, int], None] | None = None) -> list[SubmissionResult]:
+          progress: Callable[[int, int], None] | None = None, layout: str = "auto",
+          ignore: Iterable[str | Path] = ()) -> list[SubmissionResult]:
     """Grade submissions (folders of exercise folders, or classes of such folders).
 
     Parameters
@@ -214,12 +215,17 @@ def grade(paths: Iterable[str | Path], source: str | Path, jobs: int | None = No
         Reuse the outcomes already in ``journal`` (same tests, limits and student files).
     progress : callable, optional
         ``progress(done, total)`` after each item.
+    layout : {"auto", "class", "submission"}
+        How a path is read: one submission or a class (:mod:`mslab.grading.intake`).
+    ignore : list of path
+        Files of a class folder that are not students' (the gradebook being written).
     """
     set_not_dumpable()  # no process of ours may read the nonces from our memory
     mode = detect(isolation)
     if require_isolation and mode == "rlimits":
-        raise ValueError("isolation required, but this machine offers no namespaces (no bwrap, "
-                         "no user namespaces): grading would run student code as your user")
+        why = ("--isolation rlimits was chosen" if isolation == "rlimits"
+               else "this machine offers no namespaces (no bwrap, no user namespaces)")
+        raise ValueError(f"isolation required, but {why}: grading would run student code without namespaces")
     jobs = max(1, jobs or os.cpu_count() or 1)
     cgroups, why_not = setup_cgroups(jobs)
     if require_isolation and cgroups is None:
@@ -229,7 +235,7 @@ def grade(paths: Iterable[str | Path], source: str | Path, jobs: int | None = No
     finished = False
     try:
         results = _grade(paths, source, jobs, timeout, memory_mb, only, (mode, isolation), cgroups, why_not,
-                         book, progress)
+                         book, progress, (layout, ignore))
         finished = True
         return results
     finally:
@@ -240,7 +246,8 @@ def grade(paths: Iterable[str | Path], source: str | Path, jobs: int | None = No
 
 def _grade(paths: Iterable[str | Path], source: str | Path, jobs: int, timeout: float, memory_mb: int,
            only: list[str] | None, modes: tuple[str, str], cgroups: dict | None, why_not: str,
-           book: Journal | None, progress: Callable[[int, int], None] | None) -> list[SubmissionResult]:
+           book: Journal | None, progress: Callable[[int, int], None] | None,
+           intake: tuple[str, Iterable]) -> list[SubmissionResult]:
     mode, asked = modes
     exercises = find_exercises(source)
     if only:
@@ -248,20 +255,20 @@ def _grade(paths: Iterable[str | Path], source: str | Path, jobs: int, timeout: 
         if unknown:
             raise ValueError(f"unknown exercise(s): {', '.join(sorted(unknown))}")
         exercises = [e for e in exercises if e.name in only]
-    submissions = expand_submissions(paths, exercises)
+    submissions = expand_submissions(paths, exercises, *intake)
     clean_stale_folders()
     if book is not None:
         book.bind(fingerprint(exercises, timeout, memory_mb))
     outcomes: dict[str, tuple] = {}
     fixed: dict[tuple, str] = {}
     items, keys = [], {}
-    for k, (sub, refused) in enumerate(submissions):
+    for k, sub in enumerate(submissions):  # every student file read once, here: the snapshot graded
         for ex in exercises:
-            text, why = (None, refused) if refused else read_student_file(sub, ex)
+            text, why = read_student_file(sub, ex)
             if text is None:
                 fixed[(k, ex.name)] = why
                 continue
-            key = item_key(sub, ex.name, text)
+            key = item_key(sub.path, ex.name, text)
             keys[(k, ex.name)] = key
             if key in outcomes or any(it["key"] == key for it in items):
                 continue  # the same folder twice on the command line
@@ -297,8 +304,8 @@ def _grade(paths: Iterable[str | Path], source: str | Path, jobs: int, timeout: 
             raise
     results = []
     boxed = describe(cgroups, memory_mb) + ("" if cgroups else f" ({why_not})")
-    for k, (sub, _) in enumerate(submissions):
-        res = SubmissionResult(str(sub), printable(sub.name or str(sub)), isolation=DESCRIPTION[mode],
+    for k, sub in enumerate(submissions):
+        res = SubmissionResult(str(sub.path), printable(sub.name), isolation=DESCRIPTION[mode],
                                resources=boxed, isolation_asked=asked)
         for ex in exercises:
             if (k, ex.name) in fixed:
