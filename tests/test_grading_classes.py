@@ -9,6 +9,9 @@ import fcntl
 import json
 import os
 import shutil
+import subprocess
+import sys
+import time
 import zipfile
 from pathlib import Path
 
@@ -201,3 +204,41 @@ def test_a_zip_bomb_is_refused_unread(tmp_path):
     (sub,) = expand_submissions([cls], [ex])
     text, why = read_student_file(sub, ex)
     assert text is None and "unpacks to more than" in why
+
+
+# -- graders side by side ---------------------------------------------------------------------------
+
+@pytest.mark.skipif(os.geteuid() != 0 or not shutil.which("unshare"),
+                    reason="needs root and unshare to start the second grader in a PID namespace of its own")
+def test_two_graders_in_two_pid_namespaces_over_one_temporary_folder(tmp_path):
+    """The second grader's clean-up, blind to the first one's PIDs, removes nothing of it."""
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    first, second = tmp_path / "first", tmp_path / "second"
+    for cls in (first, second):
+        (cls / "b_honest" / TARGET).mkdir(parents=True)
+        shutil.copyfile(SOURCE / TARGET / MODULE, cls / "b_honest" / TARGET / MODULE)
+    (first / "a_spinner" / TARGET).mkdir(parents=True)  # holds the first runner while the second starts
+    (first / "a_spinner" / TARGET / MODULE).write_text("while True:\n    pass\n")
+    env = dict(os.environ, TMPDIR=str(tmp), PYTHONPATH=str(ROOT))
+    cmd = [sys.executable, "-m", "mslab", "grade", "--source", str(SOURCE), "--exercise", TARGET,
+           "--jobs", "1", "--json"]
+    proc = subprocess.Popen([*cmd, str(first)], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not list(tmp.glob("mslab-grade-*/runner-*")) and proc.poll() is None:
+            assert time.monotonic() < deadline, "the first grader started no runner"
+            time.sleep(0.05)  # waits for a condition, not a duration
+        other = subprocess.run(["unshare", "--pid", "--fork", *cmd, str(second)], env=env,
+                               capture_output=True, text=True, timeout=300)
+        out, err = proc.communicate(timeout=600)
+    finally:
+        proc.kill()
+    assert other.returncode == 0, other.stderr[-2000:]
+    assert json.loads(other.stdout)["total"] == json.loads(other.stdout)["max"] > 0
+    assert proc.returncode == 0, err[-2000:]
+    results = {d["student"]: d for d in json.loads(out)["submissions"]}
+    assert results["b_honest"]["total"] == results["b_honest"]["max"] > 0, results["b_honest"]
+    assert results["a_spinner"]["total"] == 0
+    assert list(tmp.iterdir()) == []  # nothing left by either

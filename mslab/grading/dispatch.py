@@ -2,8 +2,9 @@
 
 The runner (:mod:`mslab.grading.runner`) is trusted but its students are not, so the
 grader treats it as unreliable: it bounds its memory and output, kills it at a wall-clock
-limit, and owns its temporary folder (removed however the runner ended; folders of a
-killed grader are removed by the next one).
+limit, and owns its temporary folder, inside the grading's own folder
+(:mod:`mslab.grading.owner`): removed however the runner ended, and a killed grader's
+folders by the next grader, never a live one's.
 """
 
 from __future__ import annotations
@@ -34,8 +35,6 @@ RUNNER_BOOT = "import sys; sys.path.insert(0, {root!r}); from mslab.grading.runn
 MAX_RUNNER_OUTPUT = 16 * 1024 * 1024
 #: address-space limit of a test runner (MB): it decodes what the sandbox answers
 RUNNER_MEMORY_MB = 4096
-#: temporary folders of the grader: ``mslab-grade-<pid>-...`` (stale ones are removed)
-TMP_PREFIX = "mslab-grade-"
 #: set when grading is interrupted: every runner is stopped and its folder removed
 STOP = threading.Event()
 
@@ -51,26 +50,15 @@ def _runner_limits() -> None:
         pass
 
 
-def clean_stale_folders() -> None:
-    """Remove the temporary folders of graders that were killed (their pid is gone)."""
-    for folder in Path(tempfile.gettempdir()).glob(f"{TMP_PREFIX}*"):
-        try:
-            pid = int(folder.name[len(TMP_PREFIX):].split("-")[0])
-            os.kill(pid, 0)
-        except ProcessLookupError:
-            shutil.rmtree(folder, ignore_errors=True)
-        except (ValueError, PermissionError, OSError):
-            continue
-
-
 def run_runner(job: dict, wall_limit: float, on_item: Callable[[str, dict], None]) -> tuple[set, str]:
     """Start one runner, feed it the job, hand each finished item to ``on_item(key, outcome)``.
 
     Returns the keys finished and why not all. The runner's temporary folder is the
     grader's: removed here however the runner ended.
     """
-    tmp = tempfile.mkdtemp(prefix=f"{TMP_PREFIX}{os.getpid()}-")
-    job = dict(job, tmp=tmp)
+    job = dict(job)
+    tmp = tempfile.mkdtemp(prefix="runner-", dir=job.pop("home", None))
+    job["tmp"] = tmp
     env = dict(os.environ, PYTEST_DISABLE_PLUGIN_AUTOLOAD="1", PYTHONDONTWRITEBYTECODE="1")
     env.pop("PYTEST_ADDOPTS", None)
     keys = {it["key"] for it in job["items"]}
