@@ -27,9 +27,9 @@ from mslab.grading.box import describe
 from mslab.grading.box import setup as setup_cgroups
 from mslab.grading.box import teardown as teardown_cgroups
 from mslab.grading.dispatch import RUNNER_SLACK, STOP, run_runner
-from mslab.grading.isolation import DESCRIPTION, detect
+from mslab.grading.isolation import DESCRIPTION, detect, unreachable_for_others
 from mslab.grading.layout import HIDDEN, Exercise, expand_submissions, find_exercises, read_student_file
-from mslab.grading.owner import Owned, clean_abandoned
+from mslab.grading.owner import Owned, clean_abandoned, closed_to_others
 from mslab.grading.remote import PHRASES, set_not_dumpable, wall_backstop
 from mslab.grading.report import Journal, fingerprint, format_report, gradebook_rows, item_key, printable
 
@@ -149,8 +149,8 @@ def _score(exercise: Exercise, outcome: dict, errors: list[str], reason_all: str
     return result
 
 
-def _run_items(items: list[dict], ctx: dict, on_item: Callable[[str, dict], None]) -> tuple[set, str]:
-    """Run items in one runner: ``(keys finished, why some are missing)``.
+def _run_items(items: list[dict], ctx: dict, on_item: Callable[[str, dict], None]) -> tuple[set, str, str]:
+    """Run items in one runner: ``(keys finished, why some are missing, the item that overran)``.
 
     ``ctx``: ``timeout``, ``memory_mb``, ``mode`` (isolation), ``cgroups`` and ``home``
     (the grading's own folder, where the runner's folder is made).
@@ -159,28 +159,35 @@ def _run_items(items: list[dict], ctx: dict, on_item: Callable[[str, dict], None
     job = {"nonce": secrets.token_hex(16), "timeout": timeout, "memory_mb": ctx["memory_mb"],
            "isolation": ctx["mode"], "import_timeout": IMPORT_CPU, "cgroups": ctx["cgroups"],
            "home": ctx["home"], "items": items}
-    wall = sum(wall_backstop(timeout) * (it["n_tests"] + 1) + wall_backstop(IMPORT_CPU) for it in items)
-    return run_runner(job, wall + RUNNER_SLACK, on_item)
+    walls = [wall_backstop(timeout) * (it["n_tests"] + 1) + wall_backstop(IMPORT_CPU) + RUNNER_SLACK
+             for it in items]
+    return run_runner(job, walls, on_item)
 
 
 def _run_chunk(items: list[dict], ctx: dict, on_item: Callable[[str, dict | None, str], None]) -> None:
     """Run a chunk of items; ``on_item(key, outcome or None, why)`` for each.
 
-    The runner grades items in order and reports each as it finishes. If it dies or
-    overruns, the first unfinished item is the suspect: it is re-run alone, and the items
-    after it get a fresh runner, so one submission can never cost another one points.
+    The runner grades items in order and reports each as it finishes. An item that
+    overruns its own wall-clock budget is reported so (not re-run: a sleeping sandbox costs
+    its own budget once, never its classmates'). If the runner dies, the first unfinished
+    item is the suspect: it is re-run alone, and the items after it get a fresh runner, so
+    one submission can never cost another one points.
     """
     pending = list(items)
     while pending and not STOP.is_set():
-        done, why = _run_items(pending, ctx, lambda k, o: on_item(k, o, ""))
+        done, why, overran = _run_items(pending, ctx, lambda k, o: on_item(k, o, ""))
         rest = [it for it in pending if it["key"] not in done]
         if not rest or STOP.is_set():
             break
+        if overran:
+            on_item(overran, None, why)
+            pending = [it for it in rest if it["key"] != overran]
+            continue
         suspect = rest[0]
         if len(pending) == 1:  # it already ran alone
             on_item(suspect["key"], None, why or "not graded")
             break
-        alone, why_alone = _run_items([suspect], ctx, lambda k, o: on_item(k, o, ""))
+        alone, why_alone, _ = _run_items([suspect], ctx, lambda k, o: on_item(k, o, ""))
         if suspect["key"] not in alone:
             on_item(suspect["key"], None, why_alone or "not graded")
         pending = rest[1:]
@@ -230,6 +237,9 @@ def grade(paths: Iterable[str | Path], source: str | Path, jobs: int | None = No
         why = ("--isolation rlimits was chosen" if isolation == "rlimits"
                else "this machine offers no namespaces (no bwrap, no user namespaces)")
         raise ValueError(f"isolation required, but {why}: grading would run student code without namespaces")
+    if mode == "rlimits" and os.geteuid() == 0 and (where := unreachable_for_others()):
+        raise ValueError(f"isolation rlimits as root runs student code as a throwaway user, who cannot "
+                         f"reach {where}: install Python and numpy where other users can run them")
     jobs = max(1, jobs or os.cpu_count() or 1)
     book = journal if isinstance(journal, Journal) or journal is None else Journal(journal, resume)
     owned = Owned()
@@ -242,7 +252,10 @@ def grade(paths: Iterable[str | Path], source: str | Path, jobs: int | None = No
                              f"and CPU share here ({why_not})")
         ctx = {"timeout": timeout, "memory_mb": memory_mb, "mode": mode, "cgroups": cgroups,
                "home": str(owned.folder), "asked": isolation, "why_not": why_not}
-        results = _grade(paths, source, jobs, only, ctx, book, progress, (layout, ignore))
+        paths = list(paths)
+        guarded = [source, *paths] if mode == "rlimits" and os.geteuid() == 0 else []
+        with closed_to_others(guarded):
+            results = _grade(paths, source, jobs, only, ctx, book, progress, (layout, ignore))
         finished = True
         return results
     finally:

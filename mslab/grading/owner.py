@@ -15,11 +15,13 @@ system calls leaves its ``.mslab-grade-build-*`` folder behind (never removed by
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import os
 import secrets
 import shutil
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 
 #: name of every grading's folder and parent cgroup: PREFIX + a random token
@@ -37,6 +39,7 @@ class Owned:
         self._fd = os.open(build / OWNER, os.O_RDWR | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o600)
         fcntl.flock(self._fd, fcntl.LOCK_EX)
         self.folder = base / self.name
+        os.chmod(build, 0o711)  # a throwaway uid may pass to its stage (rlimits as root), not list
         os.rename(build, self.folder)
 
     def close(self) -> None:
@@ -68,3 +71,23 @@ def clean_abandoned(base: str | Path | None = None) -> None:
     for folder in Path(base or tempfile.gettempdir()).glob(f"{PREFIX}*"):
         if folder.is_dir() and not folder.is_symlink() and is_abandoned(folder):
             shutil.rmtree(folder, ignore_errors=True)
+
+
+@contextlib.contextmanager
+def closed_to_others(paths: list[str | Path]) -> Iterator[None]:
+    """Close folders to other users (mode 0700) while grading, then give them their mode back.
+
+    Used when student code runs as a throwaway uid without namespaces (rlimits as root):
+    the instructor's tree and the submissions become unreadable to it.
+    """
+    changed = []
+    try:
+        for path in dict.fromkeys(os.path.realpath(p) for p in paths):
+            mode = os.stat(path).st_mode & 0o7777
+            if mode & 0o077:
+                os.chmod(path, mode & 0o7700)
+                changed.append((path, mode))
+        yield
+    finally:
+        for path, mode in changed:
+            os.chmod(path, mode)
