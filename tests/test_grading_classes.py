@@ -19,8 +19,10 @@ import pytest
 
 from mslab.cli import main as cli_main
 from mslab.commands import grade as grade_command
-from mslab.grading import find_exercises, grade
+from mslab.grading import autograde, find_exercises, grade
+from mslab.grading.dispatch import run_runner
 from mslab.grading.intake import Submission
+from mslab.grading.isolation import detect, unreachable_for_others
 from mslab.grading.layout import expand_submissions, read_student_file
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -242,3 +244,43 @@ def test_two_graders_in_two_pid_namespaces_over_one_temporary_folder(tmp_path):
     assert results["b_honest"]["total"] == results["b_honest"]["max"] > 0, results["b_honest"]
     assert results["a_spinner"]["total"] == 0
     assert list(tmp.iterdir()) == []  # nothing left by either
+
+
+# -- wall time per submission -----------------------------------------------------------------------
+
+def test_a_sleeper_costs_its_own_wall_budget_once(tmp_path, monkeypatch):
+    """The runner is stopped at the sleeping item's own budget; the item is not re-run, the next one is."""
+    ex = next(e for e in find_exercises(SOURCE) if e.name == TARGET)
+    home = tmp_path / "home"
+    home.mkdir()
+
+    def item(key: str, text: str) -> dict:
+        return {"key": key, "name": ex.name, "module": ex.module, "student_source": text, "tests": ex.tests,
+                "n_tests": len(ex.points), "cpu_s": 60}
+
+    sleeper = item("sleeper", "import time\ntime.sleep(10 ** 6)\n")
+    honest = item("honest", (SOURCE / TARGET / MODULE).read_text())
+    mode = detect("auto")
+    if mode == "rlimits" and os.geteuid() == 0 and unreachable_for_others():
+        pytest.skip("no isolation mode can start a sandbox here")
+    job = {"nonce": "ab" * 16, "timeout": 10.0, "memory_mb": 1024, "isolation": mode,
+           "import_timeout": 30.0, "cgroups": None, "home": str(home), "items": [sleeper, honest]}
+    done, why, overran = run_runner(job, [3.0, 600.0], lambda k, o: None)
+    assert (done, overran) == (set(), "sleeper")
+    assert "wall-clock limit of 3 s for one exercise of one submission" in why
+    assert list(home.iterdir()) == []
+
+    calls, seen = [], {}
+
+    def fake_run_items(items, ctx, on_item):  # the runner stopped at the sleeper's budget
+        calls.append([it["key"] for it in items])
+        if items[0]["key"] == "sleeper":
+            return set(), why, "sleeper"
+        for it in items:
+            on_item(it["key"], {"results": {}, "errors": []})
+        return {it["key"] for it in items}, "", ""
+
+    monkeypatch.setattr(autograde, "_run_items", fake_run_items)
+    autograde._run_chunk([sleeper, honest], {}, lambda k, o, w: seen.setdefault(k, (o, w)))
+    assert calls == [["sleeper", "honest"], ["honest"]]  # never the sleeper alone a second time
+    assert seen["sleeper"] == (None, why) and seen["honest"][0] is not None
