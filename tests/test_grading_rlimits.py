@@ -49,8 +49,8 @@ def real_stability_interval(A, b, tol=1e-12):
 '''
 
 
-def _throwaway_processes() -> list[str]:
-    """Processes of a throwaway uid, with their state (a zombie waits for init to reap it)."""
+def _processes_of(uids: set[int]) -> list[str]:
+    """Processes of these uids, with their state (a zombie waits for init to reap it)."""
     found = []
     for entry in os.listdir("/proc"):
         try:
@@ -59,7 +59,7 @@ def _throwaway_processes() -> list[str]:
             uid = int(fields["Uid"].split()[0])
         except (OSError, ValueError, KeyError):
             continue
-        if UID_BASE <= uid < UID_BASE + UID_SPAN and not fields["State"].strip().startswith("Z"):
+        if uid in uids and not fields["State"].strip().startswith("Z"):
             found.append(f"{entry} {fields['State'].strip()}")
     return found
 
@@ -119,7 +119,58 @@ def test_no_hidden_text_in_any_output(graded_as_root):
 
 
 def test_no_process_left_and_the_folders_get_their_modes_back(graded_as_root):
-    _, _, modes, left = graded_as_root
-    assert _throwaway_processes() == []  # the daemon died with its sandbox
+    proc, _, modes, left = graded_as_root
+    uids = {int(part.split()[0]) for part in proc.stdout.split("uid=")[1:]}  # those the reader reported
+    assert uids
+    assert _processes_of(uids) == []  # each sandbox's setsid daemon died with it
     assert modes == {"src": 0o755, "class": 0o755}
     assert left == []
+
+
+BOMB = """
+import os, sys
+r, w = os.pipe()
+n = 0
+for _ in range(300):
+    try:
+        pid = os.fork()
+    except OSError:
+        break
+    if pid == 0:
+        os.close(w)
+        os.read(r, 1)
+        os._exit(0)
+    n += 1
+os.close(w)
+print(n)
+"""
+
+
+def _closed_to_others(path: str) -> bool:
+    parts = Path(os.path.realpath(path)).parts
+    return any(not os.stat(os.path.join(*parts[:k])).st_mode & 0o001 for k in range(2, len(parts)))
+
+
+@pytest.mark.skipif(os.geteuid() != 0, reason="needs root to run the sandbox's limits as a fresh user")
+def test_a_user_without_cgroups_has_a_process_cap_anyway():
+    """As a user without a cgroup the sandbox's limits stop a fork bomb within 64 new processes."""
+    from mslab.grading.box import MAX_PROCESSES
+    from mslab.grading.remote import _limits
+
+    uid = UID_BASE + UID_SPAN - 1  # a user with no process yet
+    limits = _limits(1024, 60, 1, mode="rlimits", box=None)
+
+    def as_user() -> None:
+        os.setgroups([])
+        os.setgid(uid)
+        os.setuid(uid)
+        limits()
+
+    python = next((p for p in (os.path.realpath(sys.executable), "/usr/bin/python3")
+                   if not _closed_to_others(p)), None)
+    if python is None:
+        pytest.skip("no interpreter that another user may run")
+    proc = subprocess.run([python, "-S", "-c", BOMB], preexec_fn=as_user,
+                          capture_output=True, text=True, timeout=120, cwd="/")
+    assert proc.returncode == 0, proc.stderr
+    assert 0 < int(proc.stdout) <= MAX_PROCESSES  # 300 without the cap

@@ -116,6 +116,9 @@ def _limits(memory_mb: int, cpu_s: int, file_mb: int, mode: str = "rlimits", box
                 pass
             if os.geteuid() == 0:  # counts the fresh uid's processes only
                 resource.setrlimit(resource.RLIMIT_NPROC, (MAX_PROCESSES, MAX_PROCESSES))
+        if os.geteuid() != 0 and (box is None or not box.config):  # no cgroup: cap the user's count
+            cap = isolation.user_process_cap(MAX_PROCESSES)
+            resource.setrlimit(resource.RLIMIT_NPROC, (cap, cap))
         mem = memory_mb * 1024 * 1024
         resource.setrlimit(resource.RLIMIT_AS, (mem, mem))
         resource.setrlimit(resource.RLIMIT_CPU, (cpu_s, cpu_s + 1))
