@@ -219,9 +219,9 @@ def grade(paths: Iterable[str | Path], source: str | Path, jobs: int | None = No
         Refuse (ValueError) rather than grade without namespaces or without a cgroup per
         sandbox (:mod:`mslab.grading.box`).
     journal : path or Journal, optional
-        Append each item's outcome here as it arrives (locked: one grader per journal);
-        a path is removed once the class is graded, an open :class:`Journal` is left to
-        its caller (who may write the gradebook before releasing it).
+        Append each item's outcome here as it arrives (locked while grading: one grader
+        per journal). The file stays for the caller to remove once its gradebook is
+        written; an open :class:`Journal` stays locked until its caller closes it.
     resume : bool
         Reuse the outcomes already in ``journal`` (same tests, limits and student files).
     progress : callable, optional
@@ -244,7 +244,6 @@ def grade(paths: Iterable[str | Path], source: str | Path, jobs: int | None = No
     book = journal if isinstance(journal, Journal) or journal is None else Journal(journal, resume)
     owned = Owned()
     cgroups = None
-    finished = False
     try:
         cgroups, why_not = setup_cgroups(jobs, owned.name)
         if require_isolation and cgroups is None:
@@ -255,14 +254,12 @@ def grade(paths: Iterable[str | Path], source: str | Path, jobs: int | None = No
         paths = list(paths)
         guarded = [source, *paths] if mode == "rlimits" and os.geteuid() == 0 else []
         with closed_to_others(guarded):
-            results = _grade(paths, source, jobs, only, ctx, book, progress, (layout, ignore))
-        finished = True
-        return results
+            return _grade(paths, source, jobs, only, ctx, book, progress, (layout, ignore))
     finally:
         teardown_cgroups(cgroups)
         owned.close()
         if book is not None and book is not journal:
-            book.close(finished)
+            book.close(finished=False)  # released; the caller removes it once the gradebook is written
 
 
 def _grade(paths: Iterable[str | Path], source: str | Path, jobs: int, only: list[str] | None, ctx: dict,
