@@ -51,6 +51,17 @@ def _runner_limits() -> None:
         pass
 
 
+def _spawn(tmp: str) -> subprocess.Popen:
+    """Start a runner process (its folder ``tmp``, inside the grading's own folder)."""
+    env = dict(os.environ, PYTEST_DISABLE_PLUGIN_AUTOLOAD="1", PYTHONDONTWRITEBYTECODE="1")
+    env[HOME_ENV] = os.path.dirname(tmp)
+    env.pop("PYTEST_ADDOPTS", None)
+    return subprocess.Popen([sys.executable, "-E", "-s", "-P", "-c", RUNNER_BOOT.format(root=PACKAGE_ROOT)],
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                            start_new_session=True, env=env, cwd=os.path.abspath(os.sep),
+                            preexec_fn=_runner_limits)
+
+
 def run_runner(job: dict, walls: list[float], on_item: Callable[[str, dict], None]) -> tuple[set, str, str]:
     """Start one runner, feed it the job, hand each finished item to ``on_item(key, outcome)``.
 
@@ -63,18 +74,11 @@ def run_runner(job: dict, walls: list[float], on_item: Callable[[str, dict], Non
     job = dict(job)
     tmp = tempfile.mkdtemp(prefix="runner-", dir=job.pop("home", None))
     job["tmp"] = tmp
-    env = dict(os.environ, PYTEST_DISABLE_PLUGIN_AUTOLOAD="1", PYTHONDONTWRITEBYTECODE="1")
-    env[HOME_ENV] = os.path.dirname(tmp)
-    env.pop("PYTEST_ADDOPTS", None)
     order = [it["key"] for it in job["items"]]
     keys = set(order)
-    overran = ""
+    overran, why = "", ""
     done: set = set()
-    why = ""
-    proc = subprocess.Popen([sys.executable, "-E", "-s", "-P", "-c", RUNNER_BOOT.format(root=PACKAGE_ROOT)],
-                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-                            start_new_session=True, env=env, cwd=os.path.abspath(os.sep),
-                            preexec_fn=_runner_limits)
+    proc = _spawn(tmp)
     sel = selectors.DefaultSelector()
     fd = proc.stdout.fileno()
     sel.register(fd, selectors.EVENT_READ)

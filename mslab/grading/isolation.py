@@ -282,6 +282,15 @@ def user_process_cap(extra: int) -> int:
     return count + extra
 
 
+def rlimits_sandbox(module_file: Path, workdir: Path) -> tuple[list[str], Path, int | None]:
+    """Return the rlimits sandbox's command, folder and uid (a throwaway one as root, else None)."""
+    uid = new_uid()
+    if uid is None:
+        return rlimit_command(module_file), workdir, None
+    argv, home = rlimits_as_uid(module_file, uid)
+    return argv, home, uid
+
+
 def become(uid: int) -> None:
     """Drop to ``uid`` for good (in the child, between fork and exec): no groups, no capabilities."""
     os.setgroups([])

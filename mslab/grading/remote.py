@@ -198,16 +198,10 @@ class Sandbox:
             env.update(HOME="/work", TMPDIR="/tmp", PATH="/usr/bin:/bin")
         return env
 
-    def _rlimits_command(self) -> tuple[list[str], tuple[int, ...], Path | None]:
-        self.uid = isolation.new_uid()
-        if self.uid is None:
-            return isolation.rlimit_command(self.module_file), (), self.workdir
-        argv, home = isolation.rlimits_as_uid(self.module_file, self.uid)
-        return argv, (), home
-
     def _command(self) -> tuple[list[str], tuple[int, ...], Path | None]:
-        if self.mode == "rlimits":
-            return self._rlimits_command()
+        if self.mode == "rlimits":  # as root: a throwaway uid on a stage of its own
+            argv, cwd, self.uid = isolation.rlimits_sandbox(self.module_file, self.workdir)
+            return argv, (), cwd
         os.lseek(self._source_fd, 0, os.SEEK_SET)
         build = isolation.bwrap_command if self.mode == "bwrap" else isolation.jail_command
         argv = build(_plan(), self._source_fd, isolation.new_uid(), module=self.module_file.name)
