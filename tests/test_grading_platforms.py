@@ -1,0 +1,226 @@
+"""Grades where courses keep them: the Gradescope, PrairieLearn and Canvas files, and the platform packages.
+
+The JSON schemas below are written from each platform's published field list (cited in
+mslab/grading/platforms.py): every field we write must be one the platform defines, with
+the type and range it defines. The packages' entry scripts are run here in the platform's
+folder layout (a path prefix stands for /autograder and /grade), as root where the suite
+runs as root, with the namespace modes forced off (``--isolation rlimits``).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import re
+import shutil
+from pathlib import Path
+
+import jsonschema
+import pytest
+
+from mslab.cli import main as cli_main
+from mslab.grading.autograde import ExerciseResult, SubmissionResult
+from mslab.grading.autograde import TestResult as Outcome
+from mslab.grading.platforms import (
+    CANVAS_COLUMNS,
+    gradescope_results,
+    prairielearn_results,
+    read_canvas,
+    write_grades,
+)
+
+ROOT = Path(__file__).resolve().parents[1]
+SOURCE = ROOT / "exercises"
+TARGET, MODULE = "02_euler_steps", "euler_steps.py"
+
+_VISIBILITY = {"enum": ["hidden", "after_due_date", "after_published", "visible"]}
+#: Gradescope's autograder specification, "Output format" (docs/specs.md of gradescope/autograder_samples)
+GRADESCOPE_SCHEMA = {
+    "type": "object",
+    "properties": {
+        "score": {"type": "number"},
+        "execution_time": {"type": "number"},
+        "output": {"type": "string"},
+        "visibility": _VISIBILITY,
+        "stdout_visibility": _VISIBILITY,
+        "extra_data": {"type": "object"},
+        "tests": {"type": "array", "items": {
+            "type": "object",
+            "properties": {
+                "score": {"type": "number"},
+                "max_score": {"type": "number"},
+                "status": {"enum": ["passed", "failed"]},
+                "name": {"type": "string"},
+                "number": {"type": "string"},
+                "output": {"type": "string"},
+                "tags": {"type": "array", "items": {"type": "string"}},
+                "visibility": _VISIBILITY,
+                "extra_data": {"type": "object"},
+            },
+            "additionalProperties": False,
+        }},
+        "leaderboard": {"type": "array"},
+    },
+    "additionalProperties": False,
+    # "score: optional, but required if not on each test case"
+    "anyOf": [{"required": ["score"]},
+              {"required": ["tests"], "properties": {"tests": {"items": {"required": ["score"]}}}}],
+}
+#: PrairieLearn's "External Grading", "Grading results" (docs/externalGrading.md of PrairieLearn)
+PRAIRIELEARN_SCHEMA = {
+    "type": "object",
+    "properties": {
+        "gradable": {"type": "boolean"},
+        "score": {"type": "number", "minimum": 0.0, "maximum": 1.0},
+        "format_errors": {"anyOf": [{"type": "string"}, {"type": "array", "items": {"type": "string"}}]},
+        "message": {"type": "string"},
+        "output": {"type": "string"},
+        "images": {"type": "array"},
+        "tests": {"type": "array", "items": {
+            "type": "object",
+            "properties": {
+                "name": {"type": "string"},
+                "description": {"type": "string"},
+                "points": {"type": "number"},
+                "max_points": {"type": "number"},
+                "message": {"type": "string"},
+                "output": {"type": "string"},
+                "images": {"type": "array"},
+            },
+            "required": ["name", "points", "max_points"],
+            "additionalProperties": False,
+        }},
+    },
+    # "If the submission is gradable, the result only has one mandatory field: score"
+    "if": {"properties": {"gradable": {"const": False}}, "required": ["gradable"]},
+    "else": {"required": ["score"]},
+}
+SECRET = "seed_31337"
+MISSING = "euler_steps.py is missing from the submission"
+
+
+def _result(student: str = "alice", hidden_reason: str = "hidden test: wrong value") -> SubmissionResult:
+    """A graded submission of two exercises: public and hidden tests, passed and failed."""
+    ex1 = ExerciseResult("01_spring_force", [
+        Outcome("test_public.py::test_hooke", 2.0, 2.0, True, "ok"),
+        Outcome("test_public.py::test_jacobian", 0.0, 3.0, False, "jacobian: wrong value at [0, 1]"),
+        Outcome(f"test_hidden.py::test_{SECRET}", 0.0, 4.0, False, hidden_reason),
+        Outcome("test_hidden.py::test_more", 1.5, 1.5, True, "ok")])
+    ex2 = ExerciseResult("02_euler_steps", [
+        Outcome("test_public.py::test_step", 0.0, 2.0, False, MISSING),
+        Outcome(f"test_hidden.py::test_{SECRET}_2", 0.0, 2.0, False, MISSING)], errors=[MISSING])
+    return SubmissionResult(f"/class/{student}", student, [ex1, ex2], isolation="test", resources="none")
+
+
+def test_gradescope_results_follow_the_published_format_and_round_trip(tmp_path):
+    res = _result()
+    doc = gradescope_results(res)
+    jsonschema.validate(doc, GRADESCOPE_SCHEMA)
+    path = write_grades(tmp_path / "results.json", "gradescope", [res])
+    back = json.loads(path.read_text())
+    assert back == doc
+    assert back["score"] == res.total == sum(t["score"] for t in back["tests"]) == 3.5
+    assert sum(t["max_score"] for t in back["tests"]) == res.max_points == 14.5
+    public = [t for t in back["tests"] if "public" in t["tags"]]
+    hidden = [t for t in back["tests"] if "hidden" in t["tags"]]
+    assert [t["visibility"] for t in public] == ["visible"] * 3
+    assert [t["visibility"] for t in hidden] == ["after_published"] * 3
+    assert [t["status"] == "passed" for t in back["tests"]] == [True, False, False, True, False, False]
+    assert public[1]["output"] == "jacobian: wrong value at [0, 1]"
+
+
+def test_prairielearn_results_follow_the_published_format_and_round_trip(tmp_path):
+    res = _result()
+    doc = prairielearn_results(res)
+    jsonschema.validate(doc, PRAIRIELEARN_SCHEMA)
+    path = write_grades(tmp_path / "results.json", "prairielearn", [res])
+    back = json.loads(path.read_text())
+    assert back == doc and back["gradable"] is True
+    assert back["score"] == pytest.approx(3.5 / 14.5, rel=1e-15)
+    assert [t["points"] for t in back["tests"]] == [2.0, 0.0, 0.0, 1.5, 0.0, 0.0]
+    assert [t["max_points"] for t in back["tests"]] == [2.0, 3.0, 4.0, 1.5, 2.0, 2.0]
+    assert len(path.read_bytes()) < 1_000_000
+
+
+def test_prairielearn_marks_a_submission_with_nothing_to_grade_not_gradable():
+    res = _result()
+    res.exercises = res.exercises[1:]  # only the exercise whose file is missing
+    doc = prairielearn_results(res)
+    jsonschema.validate(doc, PRAIRIELEARN_SCHEMA)
+    assert doc["gradable"] is False
+    assert doc["format_errors"] == ["02_euler_steps: euler_steps.py is missing from the submission"]
+
+
+def test_canvas_gradebook_has_canvas_columns_and_round_trips(tmp_path):
+    results = [_result("alice"), _result("=HYPERLINK(evil)")]
+    results[1].exercises[0].tests[0] = Outcome("test_public.py::test_hooke", 0.0, 2.0, False, "x")
+    path = write_grades(tmp_path / "canvas.csv", "canvas", results)
+    rows = list(csv.reader(path.open(newline="")))
+    assert tuple(rows[0][:5]) == CANVAS_COLUMNS and rows[0][5] == "mslab exercises"
+    assert rows[1][0] == "Points Possible" and rows[1][5] == "14.5"
+    assert [r[3] for r in rows[2:]] == [r[0] for r in rows[2:]]  # the folder name is the SIS Login ID
+    title, possible, scores = read_canvas(path)
+    assert (title, possible) == ("mslab exercises", 14.5)
+    assert scores == {"alice": 3.5, "'=HYPERLINK(evil)": 1.5}  # a formula is not a formula
+    path = write_grades(tmp_path / "canvas.csv", "canvas", results[:1], assignment="Exercise 2 (81234)")
+    assert read_canvas(path)[0] == "Exercise 2 (81234)"
+
+
+@pytest.mark.parametrize("fmt", ["gradescope", "prairielearn", "canvas"])
+def test_no_hidden_test_name_nor_message_reaches_a_platform(tmp_path, fmt):
+    # the grader's reason of a hidden test is a fixed phrase; even if it were not, it stays out
+    results = [_result(hidden_reason=f"expected 0.25 for {SECRET}")]
+    text = write_grades(tmp_path / "out", fmt, results).read_text()
+    assert SECRET not in text and "0.25" not in text
+    if fmt != "canvas":
+        doc = json.loads(text)
+        names = [t["name"] for t in doc["tests"]]
+        assert names[2] == "01_spring_force: hidden test 1" and names[5] == "02_euler_steps: hidden test 1"
+
+
+def test_one_submission_per_results_json_and_options_checked(tmp_path, capsys):
+    with pytest.raises(ValueError, match="one submission"):
+        write_grades(tmp_path / "r.json", "gradescope", [_result("a"), _result("b")])
+    assert not (tmp_path / "r.json").exists()
+    sub, src = str(tmp_path), ["--source", str(SOURCE)]
+    for args, message in (([sub, "--format", "gradescope"], "--format: gradescope needs --output FILE"),
+                          ([sub, sub, "--format", "prairielearn", "--output", "r.json"],
+                           "--format: prairielearn writes the results.json of one submission, not of 2"),
+                          ([sub, "--format", "canvas", "--output", "c.csv", "--assignment", "a\nb"],
+                           "--assignment: a one-line title"),
+                          ([sub, "--assignment", "A (1)", "--output", "c.csv"],
+                           "--assignment: only for --format canvas")):
+        assert cli_main(["grade", *args, *src]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"mslab: error: {message}") and len(err.splitlines()) == 1, err
+
+
+@pytest.fixture(scope="module")
+def small_class(tmp_path_factory) -> Path:
+    """Exercise 02 of a class of two: the reference solution, and an empty release file."""
+    base = tmp_path_factory.mktemp("platform_class") / "class"
+    for name in ("good", "empty"):
+        (base / name / TARGET).mkdir(parents=True)
+    shutil.copyfile(SOURCE / TARGET / MODULE, base / "good" / TARGET / MODULE)
+    (base / "empty" / TARGET / MODULE).write_text("def forward_euler_step(x, v, prob, dt):\n"
+                                                  "    raise NotImplementedError\n")
+    return base
+
+
+def test_grade_writes_each_platform_format(small_class, tmp_path, capsys):
+    common = ["--source", str(SOURCE), "--exercise", TARGET, "--isolation", "rlimits"]
+    assert cli_main(["grade", str(small_class), *common, "--format", "canvas", "--output",
+                     str(tmp_path / "canvas.csv"), "--assignment", "Euler (4711)"]) == 0
+    title, possible, scores = read_canvas(tmp_path / "canvas.csv")
+    assert (title, possible, scores) == ("Euler (4711)", 13.0, {"empty": 0.0, "good": 13.0})
+    for fmt, schema in (("gradescope", GRADESCOPE_SCHEMA), ("prairielearn", PRAIRIELEARN_SCHEMA)):
+        out = tmp_path / f"{fmt}.json"
+        args = ["grade", str(small_class / "good"), *common, "--format", fmt, "--output", str(out)]
+        assert cli_main(args) == 0
+        doc = json.loads(out.read_text())
+        jsonschema.validate(doc, schema)
+        assert doc["score"] == (13.0 if fmt == "gradescope" else 1.0)
+        hidden_source = (SOURCE / TARGET / "test_hidden.py").read_text()
+        names = re.findall(r"^def (test_\w+)", hidden_source, flags=re.M)
+        assert names and not any(n in out.read_text() for n in names)
+    capsys.readouterr()
