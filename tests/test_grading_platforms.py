@@ -11,8 +11,14 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 import re
 import shutil
+import stat
+import subprocess
+import sys
+import tomllib
+import zipfile
 from pathlib import Path
 
 import jsonschema
@@ -21,6 +27,7 @@ import pytest
 from mslab.cli import main as cli_main
 from mslab.grading.autograde import ExerciseResult, SubmissionResult
 from mslab.grading.autograde import TestResult as Outcome
+from mslab.grading.isolation import DESCRIPTION
 from mslab.grading.platforms import (
     CANVAS_COLUMNS,
     gradescope_results,
@@ -224,3 +231,153 @@ def test_grade_writes_each_platform_format(small_class, tmp_path, capsys):
         names = re.findall(r"^def (test_\w+)", hidden_source, flags=re.M)
         assert names and not any(n in out.read_text() for n in names)
     capsys.readouterr()
+
+
+# --- the platform packages, run in the platform's folder layout ----------------------------------
+
+HOSTILE = '''
+import sys
+
+STOLEN = {targets!r}
+SPILL = {spill!r}
+
+
+def _steal():
+    found = []
+    for path in STOLEN:
+        try:
+            with open(path) as fh:
+                found.append("LEAK " + fh.read()[:400])
+        except Exception as err:
+            found.append("blocked " + type(err).__name__)
+    text = " | ".join(found)
+    print(text)
+    print(text, file=sys.stderr)
+    for out in SPILL:
+        try:
+            with open(out, "w") as fh:
+                fh.write(text)
+        except Exception:
+            pass
+    return text
+
+
+def forward_euler_step(x, v, prob, dt):
+    raise RuntimeError(_steal())
+
+
+symplectic_euler_step = symplectic_euler_x_step = forward_euler_step
+'''
+
+
+def _hidden_text() -> list[str]:
+    """Pieces of the hidden tests that must never reach a student: each test's name and its lines."""
+    text = (SOURCE / TARGET / "test_hidden.py").read_text()
+    names = re.findall(r"^def (test_\w+)", text, flags=re.M)
+    lines = [line.strip() for line in text.splitlines() if len(line.strip()) > 30]
+    assert len(names) >= 3 and len(lines) >= 10
+    return names + lines
+
+
+def _run(command: list[str], env: dict) -> subprocess.CompletedProcess:
+    """Run a package's entry script as the platform would (the suite's user: root where it runs as root)."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("MSLAB_")} | env
+    env["MSLAB_PYTHON"] = sys.executable
+    return subprocess.run(["bash", *command], env=env, cwd=Path(command[0]).parent, capture_output=True,
+                          text=True, timeout=600)
+
+
+def _everything_written(run: subprocess.CompletedProcess, results: Path) -> str:
+    files = [p.read_text(errors="replace") for p in sorted(results.rglob("*")) if p.is_file()]
+    return "\n".join([run.stdout, run.stderr, *files])
+
+
+@pytest.fixture(scope="module")
+def packages(tmp_path_factory) -> Path:
+    base = tmp_path_factory.mktemp("packages")
+    assert cli_main(["release", str(SOURCE), "--gradescope", str(base / "gradescope"),
+                     "--prairielearn", str(base / "prairielearn"), "--exercise", TARGET]) == 0
+    return base
+
+
+def test_packages_hold_tests_but_no_solution(packages):
+    from mslab.grading.release import solution_lines
+
+    with zipfile.ZipFile(packages / "gradescope.zip") as z:
+        names = set(z.namelist())
+        assert {"setup.sh", "run_autograder", f"exercises/{TARGET}/test_hidden.py"} <= names
+        assert all((z.getinfo(n).external_attr >> 16) & 0o111 for n in ("setup.sh", "run_autograder"))
+    assert not any(n.startswith(("exercises/01_", "exercises/03_")) for n in names)
+    solution = solution_lines((SOURCE / TARGET / MODULE).read_text())
+    for folder in (packages / "gradescope" / "exercises",
+                   packages / "prairielearn" / "serverFilesCourse" / "mslab_grader" / "exercises"):
+        text = "\n".join(p.read_text() for p in folder.rglob("*.py"))
+        assert not [line for line in solution if line in text]
+    options = json.loads((packages / "prairielearn" / "info.json").read_text())[TARGET]
+    entry = options["externalGradingOptions"]["entrypoint"]
+    assert entry == f"/grade/serverFilesCourse/mslab_grader/run.sh {TARGET}"
+    pyproject = tomllib.loads((packages / "gradescope" / "mslab-src" / "pyproject.toml").read_text())
+    assert any(r.startswith("pytest") for r in pyproject["project"]["dependencies"])  # the runner is pytest
+
+
+def _layout(platform: str, packages: Path, base: Path, source: str) -> tuple[Path, list[str], dict]:
+    """The platform's folder layout under ``base`` with ``source`` uploaded flat: (root, command, env).
+
+    Gradescope: /autograder/source/ from the zip, /autograder/run_autograder, submission/.
+    PrairieLearn: /grade/serverFilesCourse/mslab_grader/ (the question's entry point), student/.
+    """
+    if platform == "gradescope":
+        root = base / "autograder"
+        with zipfile.ZipFile(packages / "gradescope.zip") as z:
+            z.extractall(root / "source")
+        shutil.copy2(root / "source" / "run_autograder", root / "run_autograder")
+        (root / "run_autograder").chmod(0o755)
+        upload, command, env = root / "submission", [str(root / "run_autograder")], "MSLAB_AUTOGRADER_ROOT"
+    else:
+        root = base / "grade"
+        shutil.copytree(packages / "prairielearn" / "serverFilesCourse", root / "serverFilesCourse")
+        entry = root / "serverFilesCourse" / "mslab_grader" / "run.sh"
+        upload, command, env = root / "student", [str(entry), TARGET], "MSLAB_GRADE_ROOT"
+    upload.mkdir()
+    (upload / MODULE).write_text(source)
+    return root, command, {env: str(root)}
+
+
+def _tests_folder(platform: str, root: Path) -> Path:
+    inside = ["source"] if platform == "gradescope" else ["serverFilesCourse", "mslab_grader"]
+    return root.joinpath(*inside, "exercises", TARGET)
+
+
+@pytest.mark.parametrize("platform", ["gradescope", "prairielearn"])
+def test_a_platform_package_grades_an_honest_upload_in_rlimits_mode(packages, tmp_path, platform):
+    root, command, env = _layout(platform, packages, tmp_path, (SOURCE / TARGET / MODULE).read_text())
+    run = _run(command, env)
+    assert run.returncode == 0, run.stderr
+    doc = json.loads((root / "results" / "results.json").read_text())
+    if platform == "gradescope":
+        jsonschema.validate(doc, GRADESCOPE_SCHEMA)
+        assert doc["score"] == 13.0 == sum(t["max_score"] for t in doc["tests"]), doc["output"]
+        assert doc["extra_data"]["isolation"] == DESCRIPTION["rlimits"]  # namespaces forced off
+    else:
+        jsonschema.validate(doc, PRAIRIELEARN_SCHEMA)
+        assert doc["gradable"] is True and doc["score"] == 1.0, doc["output"]
+    assert stat.S_IMODE(_tests_folder(platform, root).stat().st_mode) == 0o700
+    text = _everything_written(run, root / "results")
+    assert not [piece for piece in _hidden_text() if piece in text]
+
+
+@pytest.mark.parametrize("platform", ["gradescope", "prairielearn"])
+def test_a_hostile_upload_reads_no_hidden_test(packages, tmp_path, platform):
+    root = tmp_path / ("autograder" if platform == "gradescope" else "grade")
+    tests, results = _tests_folder(platform, root), root / "results"
+    attack = HOSTILE.format(targets=[str(tests / "test_hidden.py"), str(tests / "test_public.py")],
+                            spill=[str(results / "results.json"), str(results / "leak.txt")])
+    root, command, env = _layout(platform, packages, tmp_path, attack)
+    run = _run(command, env)
+    assert run.returncode == 0, run.stderr
+    doc = json.loads((results / "results.json").read_text())
+    jsonschema.validate(doc, GRADESCOPE_SCHEMA if platform == "gradescope" else PRAIRIELEARN_SCHEMA)
+    assert doc["score"] == 0.0
+    text = _everything_written(run, results)
+    assert "blocked" in text  # the attack ran, and what it could say reached the results
+    assert "LEAK" not in text and not [piece for piece in _hidden_text() if piece in text]

@@ -199,7 +199,8 @@ def _canvas_title(assignment: str | None) -> str:
     return title
 
 
-def _write_json(path: str | Path, doc: dict[str, Any], limit: int | None = None) -> Path:
+def write_json(path: str | Path, doc: dict[str, Any], limit: int | None = None) -> Path:
+    """Write ``doc`` as JSON atomically; past ``limit`` bytes, test messages and output are shortened."""
     text = json.dumps(doc, indent=2, allow_nan=False) + "\n"
     if limit is not None and len(text.encode()) > limit:
         for t in doc.get("tests", []):  # shorten the messages, never the scores
@@ -226,9 +227,9 @@ def write_grades(path: str | Path, fmt: str, results: Sequence[SubmissionResult]
         raise ValueError(f"format: {fmt} writes one submission's results.json; "
                          f"{len(results)} submissions were graded")
     if fmt == "gradescope":
-        return _write_json(path, gradescope_results(results[0]))
+        return write_json(path, gradescope_results(results[0]))
     if fmt == "prairielearn":
-        return _write_json(path, prairielearn_results(results[0]), limit=PRAIRIELEARN_MAX_BYTES)
+        return write_json(path, prairielearn_results(results[0]), limit=PRAIRIELEARN_MAX_BYTES)
     rows = canvas_rows(results, assignment) if fmt == "canvas" else gradebook_rows(results)
     return write_csv(path, rows)
 
