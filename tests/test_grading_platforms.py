@@ -381,3 +381,43 @@ def test_a_hostile_upload_reads_no_hidden_test(packages, tmp_path, platform):
     text = _everything_written(run, results)
     assert "blocked" in text  # the attack ran, and what it could say reached the results
     assert "LEAK" not in text and not [piece for piece in _hidden_text() if piece in text]
+
+
+# --- the student release's README: the commands a student types ----------------------------------
+
+def test_release_readme_commands_use_the_python_that_has_mslab(tmp_path):
+    """Issue 39: a bare ``pytest`` may be another Python's; the README's commands never call it."""
+    release = tmp_path / "release"
+    assert cli_main(["release", str(SOURCE), str(release)]) == 0
+    readme = (release / "README.md").read_text()
+    blocks = re.findall(r"^```\n(.*?)^```", readme, flags=re.M | re.S)
+    commands = [line.split("#")[0].strip() for block in blocks for line in block.splitlines() if line.strip()]
+    installs = [c for c in commands if " pip " in f" {c} "]
+    runs = [c for c in commands if c not in installs]
+    assert installs == ['python -m pip install "mslab[students]"'] and len(runs) == 2, commands
+    extras = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"]
+    assert any(r.startswith("pytest") for r in extras["students"]) and "mslab[lessons]" in extras["students"]
+    # another Python's pytest first on PATH: a student's `pytest` would be this one
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    (bin_dir / "pytest").write_text("#!/bin/sh\necho \"ModuleNotFoundError: No module named 'mslab'\"\n"
+                                    "exit 4\n")
+    (bin_dir / "pytest").chmod(0o755)
+    (bin_dir / "python").write_text(f'#!/bin/sh\nexec "{sys.executable}" "$@"\n')  # the student's Python
+    (bin_dir / "python").chmod(0o755)
+    env = dict(os.environ, PATH=f"{bin_dir}{os.pathsep}{os.environ['PATH']}", PYTEST_ADDOPTS="-p no:randomly",
+               PYTEST_DISABLE_PLUGIN_AUTOLOAD="1")
+    publics = sum(t.startswith("test_public") for t in _points_of_all())
+    for command, expected in zip(runs, (None, publics), strict=True):
+        proc = subprocess.run(command, shell=True, cwd=release, env=env, capture_output=True, text=True,
+                              timeout=600)
+        assert "No module named" not in proc.stdout + proc.stderr, proc.stdout[-2000:]
+        assert proc.returncode == 1 and re.search(r"\d+ failed in", proc.stdout), proc.stdout[-2000:]
+        if expected is not None:  # every public test ran (and failed: nothing is implemented)
+            assert f"{expected} failed in" in proc.stdout, proc.stdout[-500:]
+
+
+def _points_of_all() -> list[str]:
+    from mslab.grading import find_exercises
+
+    return [test for ex in find_exercises(SOURCE) for test in ex.points]
