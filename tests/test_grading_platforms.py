@@ -320,6 +320,17 @@ def test_packages_hold_tests_but_no_solution(packages):
     assert any(r.startswith("pytest") for r in pyproject["project"]["dependencies"])  # the runner is pytest
 
 
+def test_release_package_options_are_checked(tmp_path, capsys):
+    for args, message in (([str(tmp_path / "out"), "--exercise", TARGET],
+                           "--exercise: --exercise applies to --gradescope / --prairielearn only"),
+                          (["--gradescope", str(tmp_path / "gs"), "--exercise", "99_nothing"],
+                           "unknown exercise(s): 99_nothing")):
+        assert cli_main(["release", str(SOURCE), *args]) == 2
+        err = capsys.readouterr().err
+        assert err == f"mslab: error: {message}\n", err
+    assert not (tmp_path / "gs").exists() and not (tmp_path / "gs.zip").exists()
+
+
 def _layout(platform: str, packages: Path, base: Path, source: str) -> tuple[Path, list[str], dict]:
     """The platform's folder layout under ``base`` with ``source`` uploaded flat: (root, command, env).
 
