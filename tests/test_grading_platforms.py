@@ -331,8 +331,11 @@ def test_release_package_options_are_checked(tmp_path, capsys):
     assert not (tmp_path / "gs").exists() and not (tmp_path / "gs.zip").exists()
 
 
-def _layout(platform: str, packages: Path, base: Path, source: str) -> tuple[Path, list[str], dict]:
-    """The platform's folder layout under ``base`` with ``source`` uploaded flat: (root, command, env).
+def _layout(platform: str, packages: Path, base: Path, source: str,
+            folder: bool = False) -> tuple[Path, list[str], dict]:
+    """The platform's folder layout under ``base`` with ``source`` uploaded: (root, command, env).
+
+    The upload is flat (the one file), or with ``folder`` inside its exercise folder (a zip).
 
     Gradescope: /autograder/source/ from the zip, /autograder/run_autograder, submission/.
     PrairieLearn: /grade/serverFilesCourse/mslab_grader/ (the question's entry point), student/.
@@ -349,7 +352,8 @@ def _layout(platform: str, packages: Path, base: Path, source: str) -> tuple[Pat
         shutil.copytree(packages / "prairielearn" / "serverFilesCourse", root / "serverFilesCourse")
         entry = root / "serverFilesCourse" / "mslab_grader" / "run.sh"
         upload, command, env = root / "student", [str(entry), TARGET], "MSLAB_GRADE_ROOT"
-    upload.mkdir()
+    upload = upload / TARGET if folder else upload
+    upload.mkdir(parents=True)
     (upload / MODULE).write_text(source)
     return root, command, {env: str(root)}
 
@@ -359,9 +363,10 @@ def _tests_folder(platform: str, root: Path) -> Path:
     return root.joinpath(*inside, "exercises", TARGET)
 
 
-@pytest.mark.parametrize("platform", ["gradescope", "prairielearn"])
-def test_a_platform_package_grades_an_honest_upload_in_rlimits_mode(packages, tmp_path, platform):
-    root, command, env = _layout(platform, packages, tmp_path, (SOURCE / TARGET / MODULE).read_text())
+@pytest.mark.parametrize("platform, folder", [("gradescope", False), ("gradescope", True),
+                                              ("prairielearn", False)])
+def test_a_platform_package_grades_an_honest_upload_in_rlimits_mode(packages, tmp_path, platform, folder):
+    root, command, env = _layout(platform, packages, tmp_path, (SOURCE / TARGET / MODULE).read_text(), folder)
     run = _run(command, env)
     assert run.returncode == 0, run.stderr
     doc = json.loads((root / "results" / "results.json").read_text())
