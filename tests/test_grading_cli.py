@@ -78,7 +78,8 @@ def test_rlimits_warns_in_one_line_and_require_isolation_refuses(small_class, ca
                      "--isolation", "rlimits"]) == 0
     out = capsys.readouterr()
     warnings = [line for line in out.err.splitlines() if "warning" in line]
-    assert len(warnings) == 1 and "not isolated" in warnings[0]
+    assert len(warnings) == 1 and "isolation is rlimits (chosen with --isolation rlimits)" in warnings[0]
+    assert "no namespaces on this machine" not in warnings[0]
     assert "NOT isolated" in out.out
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 import sys
 import time
@@ -9,15 +10,19 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from mslab.commands.common import CommandError, add_common_options, emit_json, say
-from mslab.grading.autograde import grade
+from mslab.grading.autograde import SubmissionResult, grade
 from mslab.grading.isolation import DESCRIPTION
 from mslab.grading.layout import default_source
 from mslab.grading.platforms import FORMATS, check_format, write_grades
-from mslab.grading.report import format_report, printable
+from mslab.grading.report import Journal, format_report, printable
 
 if TYPE_CHECKING:
     import argparse
 
+#: smallest --timeout (CPU seconds; the runner measures CPU time every 0.05-0.2 s)
+MIN_TIMEOUT = 0.1
+#: smallest --memory (MB)
+MIN_MEMORY = 64
 #: seconds of grading before a progress line appears (on a terminal only)
 PROGRESS_AFTER = 2.0
 
@@ -30,7 +35,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "code runs isolated by the operating system where it can (namespaces), with time "
                     "and memory limits.")
     p.add_argument("submissions", nargs="+", metavar="SUBMISSION",
-                   help="a submission folder (NN_topic/ inside) or a class folder <student>/")
+                   help="a submission folder (NN_topic/FILE inside, or FILE itself with --exercise) "
+                        "or a class folder (see --layout)")
     p.add_argument("--source", default=None,
                    help="the instructor's exercises with all tests (required unless the current "
                         "folder holds them as exercises/)")
@@ -52,6 +58,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--jobs", type=int, default=None, metavar="N", help="parallel runners (default: cores)")
     p.add_argument("--exercise", action="append", default=None, metavar="NAME",
                    help="grade only this exercise (repeatable)")
+    p.add_argument("--layout", default="auto", choices=["auto", "class", "submission"],
+                   help="class: every entry of SUBMISSION is a student's (folder, .zip, .py, .ipynb); "
+                        "submission: SUBMISSION is one student's work; auto (default): one submission "
+                        "if it holds an exercise's file (NN_topic/FILE or FILE itself), else a class")
     p.add_argument("--isolation", default="auto", choices=["auto", "bwrap", "namespaces", "rlimits"],
                    help="how student code is isolated (default: the strongest available)")
     p.add_argument("--require-isolation", action="store_true",
@@ -84,16 +94,45 @@ class Progress:
             sys.stderr.flush()
 
 
-def run(args: argparse.Namespace) -> int:
-    """Run ``mslab grade`` with the parsed ``args``; return the exit code."""
-    if args.timeout <= 0:
-        raise CommandError("must be positive", key="--timeout")
+def _check_options(args: argparse.Namespace) -> None:
+    """Refuse bad limits and gradebook paths in one line, before anything runs."""
+    limits = (("--timeout", args.timeout, MIN_TIMEOUT), ("--memory", args.memory, MIN_MEMORY))
+    for key, value, least in limits:
+        if not math.isfinite(value) or value < least:
+            raise CommandError(f"must be a finite number of at least {least:g}, not {value!r}", key=key)
     if args.jobs is not None and args.jobs < 1:
         raise CommandError("must be at least 1", key="--jobs")
     try:
         check_format(args.format, args.csv, len(args.submissions), args.assignment)
     except ValueError as err:
         raise CommandError(str(err)) from None
+    for key, path in (("--csv", args.csv), ("--journal", args.journal)):
+        if path is None:
+            continue
+        target = Path(path)
+        if os.path.lexists(target) and (target.is_symlink() or not target.is_file()):
+            raise CommandError("must be a regular file or a new one", where=str(path), key=key)
+        folder = target.parent if str(target.parent) else Path(".")
+        if not folder.is_dir() or not os.access(folder, os.W_OK | os.X_OK):
+            raise CommandError("its folder is missing or not writable", where=str(path), key=key)
+
+
+def _warn_isolation(result: SubmissionResult) -> None:
+    """One line naming the isolation in force and what it leaves unprotected."""
+    if result.isolation == DESCRIPTION["rlimits"]:
+        why = ("chosen with --isolation rlimits" if result.isolation_asked == "rlimits"
+               else "no bwrap and no user namespaces on this machine")
+        print(f"mslab: warning: isolation is rlimits ({why}): student code ran as your user in your "
+              "file system with per-process limits only (no namespaces: it can read what your user "
+              "can read); use --require-isolation to refuse", file=sys.stderr)
+    elif result.resources.startswith("no cgroup"):
+        print(f"mslab: warning: {result.resources}: a sandbox's processes, memory and CPU share are "
+              "not capped as a whole; use --require-isolation to refuse", file=sys.stderr)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``mslab grade`` with the parsed ``args``; return the exit code."""
+    _check_options(args)
     source = args.source or default_source()
     if source is None:
         raise CommandError("--source is required: the instructor's exercises folder (with the hidden "
@@ -103,29 +142,50 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError("--resume needs --csv or --journal (where the interrupted grading wrote)")
     if args.resume and not Path(journal).is_file():
         raise CommandError(f"{journal}: no journal to resume from")
-    progress = Progress(sys.stderr.isatty() and not args.json)
     try:
-        results = grade(args.submissions, source=source, jobs=args.jobs, timeout=args.timeout,
-                        memory_mb=args.memory, only=args.exercise, isolation=args.isolation,
-                        require_isolation=args.require_isolation, journal=journal, resume=args.resume,
-                        progress=progress)
+        book = Journal(journal, args.resume) if journal else None
     except ValueError as err:
         raise CommandError(str(err)) from None
+    try:
+        results = _grade(args, source, book)
+        if args.csv:
+            try:
+                write_grades(args.csv, args.format, results, assignment=args.assignment)
+            except ValueError as err:
+                raise CommandError(str(err), where=os.fspath(args.csv)) from None
+        if book is not None:
+            book.close(finished=True)  # the class is graded: nothing to resume
+    finally:
+        if book is not None:
+            book.close(finished=False)
+    if results:
+        _warn_isolation(results[0])
+    _show(args, results)
+    return 0
+
+
+def _grade(args: argparse.Namespace, source: str | Path, book: Journal | None) -> list:
+    progress = Progress(sys.stderr.isatty() and not args.json)
+    try:
+        return grade(args.submissions, source=source, jobs=args.jobs, timeout=args.timeout,
+                     memory_mb=args.memory, only=args.exercise, isolation=args.isolation,
+                     require_isolation=args.require_isolation, journal=book, resume=args.resume,
+                     progress=progress, layout=args.layout,
+                     ignore=[p for p in (args.csv, book.path if book else None) if p])
+    except ValueError as err:
+        raise CommandError(str(err)) from None
+    except KeyboardInterrupt:
+        progress.close()
+        hint = (f"the items graded so far are in {book.path}: run the same command with --resume "
+                "to continue" if book is not None else
+                "grade with --csv FILE (or --journal FILE) to be able to continue with --resume")
+        print(f"mslab: grading interrupted; {hint}", file=sys.stderr)
+        raise
     finally:
         progress.close()
-    if results and results[0].isolation == DESCRIPTION["rlimits"]:
-        print("mslab: warning: grading is not isolated (no namespaces on this machine): student code "
-              "ran as your user; use --require-isolation to refuse", file=sys.stderr)
-    elif results and results[0].resources.startswith("no cgroup"):
-        print(f"mslab: warning: {results[0].resources}: a sandbox's processes, memory and CPU share are "
-              "not capped as a whole; use --require-isolation to refuse", file=sys.stderr)
-    if args.csv:
-        try:
-            write_grades(args.csv, args.format, results, assignment=args.assignment)
-        except ValueError as err:
-            raise CommandError(str(err), where=os.fspath(args.csv)) from None
-    if journal:
-        Path(journal).unlink(missing_ok=True)  # the class is graded: nothing to resume
+
+
+def _show(args: argparse.Namespace, results: list) -> None:
     if args.json:
         docs = [r.to_dict() for r in results]
         emit_json(docs[0] if len(docs) == 1 else {"submissions": docs})
@@ -138,4 +198,3 @@ def run(args: argparse.Namespace) -> int:
                 say(args, f"{printable(r.student, 24):<24} {r.total:g}/{r.max_points:g}")
     if args.csv:
         say(args, f"gradebook: {os.fspath(args.csv)}")
-    return 0

@@ -79,6 +79,7 @@ class SubmissionResult:
     exercises: list[ExerciseResult] = field(default_factory=list)
     isolation: str = ""
     resources: str = ""
+    isolation_asked: str = "auto"
 
     @property
     def total(self) -> float:
@@ -183,8 +184,9 @@ def _run_chunk(items: list[dict], timeout: float, memory_mb: int, mode: str, cgr
 
 def grade(paths: Iterable[str | Path], source: str | Path, jobs: int | None = None, timeout: float = 10.0,
           memory_mb: int = 1024, only: list[str] | None = None, isolation: str = "auto",
-          require_isolation: bool = False, journal: str | Path | None = None, resume: bool = False,
-          progress: Callable[[int, int], None] | None = None) -> list[SubmissionResult]:
+          require_isolation: bool = False, journal: str | Path | Journal | None = None, resume: bool = False,
+          progress: Callable[[int, int], None] | None = None, layout: str = "auto",
+          ignore: Iterable[str | Path] = ()) -> list[SubmissionResult]:
     """Grade submissions (folders of exercise folders, or classes of such folders).
 
     Parameters
@@ -205,53 +207,68 @@ def grade(paths: Iterable[str | Path], source: str | Path, jobs: int | None = No
     require_isolation : bool
         Refuse (ValueError) rather than grade without namespaces or without a cgroup per
         sandbox (:mod:`mslab.grading.box`).
-    journal : path, optional
-        Append each item's outcome here as it arrives; removed once the class is graded.
+    journal : path or Journal, optional
+        Append each item's outcome here as it arrives (locked: one grader per journal);
+        a path is removed once the class is graded, an open :class:`Journal` is left to
+        its caller (who may write the gradebook before releasing it).
     resume : bool
         Reuse the outcomes already in ``journal`` (same tests, limits and student files).
     progress : callable, optional
         ``progress(done, total)`` after each item.
+    layout : {"auto", "class", "submission"}
+        How a path is read: one submission or a class (:mod:`mslab.grading.intake`).
+    ignore : list of path
+        Files of a class folder that are not students' (the gradebook being written).
     """
     set_not_dumpable()  # no process of ours may read the nonces from our memory
     mode = detect(isolation)
     if require_isolation and mode == "rlimits":
-        raise ValueError("isolation required, but this machine offers no namespaces (no bwrap, "
-                         "no user namespaces): grading would run student code as your user")
+        why = ("--isolation rlimits was chosen" if isolation == "rlimits"
+               else "this machine offers no namespaces (no bwrap, no user namespaces)")
+        raise ValueError(f"isolation required, but {why}: grading would run student code without namespaces")
     jobs = max(1, jobs or os.cpu_count() or 1)
     cgroups, why_not = setup_cgroups(jobs)
     if require_isolation and cgroups is None:
         raise ValueError(f"isolation required, but no cgroup can cap each sandbox's processes, memory "
                          f"and CPU share here ({why_not})")
+    book = journal if isinstance(journal, Journal) or journal is None else Journal(journal, resume)
+    finished = False
     try:
-        return _grade(paths, source, jobs, timeout, memory_mb, only, mode, cgroups, why_not, journal,
-                      resume, progress)
+        results = _grade(paths, source, jobs, timeout, memory_mb, only, (mode, isolation), cgroups, why_not,
+                         book, progress, (layout, ignore))
+        finished = True
+        return results
     finally:
         teardown_cgroups(cgroups)
+        if book is not None and book is not journal:
+            book.close(finished)
 
 
 def _grade(paths: Iterable[str | Path], source: str | Path, jobs: int, timeout: float, memory_mb: int,
-           only: list[str] | None, mode: str, cgroups: dict | None, why_not: str,
-           journal: str | Path | None, resume: bool,
-           progress: Callable[[int, int], None] | None) -> list[SubmissionResult]:
+           only: list[str] | None, modes: tuple[str, str], cgroups: dict | None, why_not: str,
+           book: Journal | None, progress: Callable[[int, int], None] | None,
+           intake: tuple[str, Iterable]) -> list[SubmissionResult]:
+    mode, asked = modes
     exercises = find_exercises(source)
     if only:
         unknown = set(only) - {e.name for e in exercises}
         if unknown:
             raise ValueError(f"unknown exercise(s): {', '.join(sorted(unknown))}")
         exercises = [e for e in exercises if e.name in only]
-    submissions = expand_submissions(paths, exercises)
+    submissions = expand_submissions(paths, exercises, *intake)
     clean_stale_folders()
-    book = Journal(journal, fingerprint(exercises, timeout, memory_mb), resume) if journal else None
+    if book is not None:
+        book.bind(fingerprint(exercises, timeout, memory_mb))
     outcomes: dict[str, tuple] = {}
     fixed: dict[tuple, str] = {}
     items, keys = [], {}
-    for k, (sub, refused) in enumerate(submissions):
+    for k, sub in enumerate(submissions):  # every student file read once, here: the snapshot graded
         for ex in exercises:
-            text, why = (None, refused) if refused else read_student_file(sub, ex)
+            text, why = read_student_file(sub, ex)
             if text is None:
                 fixed[(k, ex.name)] = why
                 continue
-            key = item_key(sub, ex.name, text)
+            key = item_key(sub.path, ex.name, text)
             keys[(k, ex.name)] = key
             if key in outcomes or any(it["key"] == key for it in items):
                 continue  # the same folder twice on the command line
@@ -276,24 +293,20 @@ def _grade(paths: Iterable[str | Path], source: str | Path, jobs: int, timeout: 
 
     chunks = [items[j::jobs] for j in range(jobs) if items[j::jobs]]
     STOP.clear()
-    try:
-        with _interrupts(), ThreadPoolExecutor(max_workers=jobs) as pool:
-            futures = [pool.submit(_run_chunk, chunk, timeout, memory_mb, mode, cgroups, on_item)
-                       for chunk in chunks]
-            try:
-                for f in futures:
-                    f.result()
-            except BaseException:
-                STOP.set()
-                raise
-    finally:
-        if book is not None:
-            book.close(finished=False)
+    with _interrupts(), ThreadPoolExecutor(max_workers=jobs) as pool:
+        futures = [pool.submit(_run_chunk, chunk, timeout, memory_mb, mode, cgroups, on_item)
+                   for chunk in chunks]
+        try:
+            for f in futures:
+                f.result()
+        except BaseException:
+            STOP.set()
+            raise
     results = []
     boxed = describe(cgroups, memory_mb) + ("" if cgroups else f" ({why_not})")
-    for k, (sub, _) in enumerate(submissions):
-        res = SubmissionResult(str(sub), printable(sub.name or str(sub)), isolation=DESCRIPTION[mode],
-                               resources=boxed)
+    for k, sub in enumerate(submissions):
+        res = SubmissionResult(str(sub.path), printable(sub.name), isolation=DESCRIPTION[mode],
+                               resources=boxed, isolation_asked=asked)
         for ex in exercises:
             if (k, ex.name) in fixed:
                 why = fixed[(k, ex.name)]

@@ -5,18 +5,18 @@ from __future__ import annotations
 import ast
 import os
 import re
-import stat
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from mslab.grading.intake import LAYOUTS, Submission, class_entry, notebook_code, read_path, zip_files
+from mslab.grading.report import printable
 
 BEGIN, END = "# BEGIN SOLUTION", "# END SOLUTION"
 #: an exercise folder is named ``NN_topic``
 EXERCISE_NAME = re.compile(r"^\d\d_[A-Za-z0-9_]+$")
 HIDDEN = re.compile(r"^test_hidden.*\.py$")
 TEST = re.compile(r"^test_.*\.py$")
-#: largest student file the grader reads (bytes)
-MAX_SOURCE = 1_000_000
 
 
 @dataclass
@@ -98,64 +98,96 @@ def find_exercises(source: str | Path) -> list[Exercise]:
     return found
 
 
-def is_submission(folder: Path, exercises: list[Exercise]) -> bool:
-    """Tell whether a submission folder holds at least one exercise folder (or one exercise's file)."""
-    names = {e.name for e in exercises}
-    return any((folder / n).is_dir() for n in names)
+def _candidates(exercise: Exercise, flat: bool) -> list[list[str]]:
+    """Where a submission keeps an exercise's file: its folder, else (flat) the top; .py before .ipynb."""
+    stem = exercise.module.rsplit(".", 1)[0]
+    out = [[exercise.name, exercise.module], [exercise.name, stem + ".ipynb"]]
+    return out + ([[exercise.module], [stem + ".ipynb"]] if flat else [])
 
 
-def expand_submissions(paths: Iterable[str | Path], exercises: list[Exercise]) -> list[tuple[Path, str]]:
-    """Return the submission folders of the command line: each path is one submission or a class of them.
+def looks_like_submission(folder: Path, exercises: list[Exercise], flat: bool = True) -> bool:
+    """Tell whether a folder holds an exercise's file where a submission keeps it (never by names alone).
 
-    Returns ``(folder, refusal)`` pairs: ``refusal`` is empty, or why the folder is not
-    graded (a symbolic link: the student's work must be the student's own files).
+    ``flat=False`` counts files in exercise folders only (``NN_topic/FILE``).
     """
+    return any(os.path.lexists(folder.joinpath(*parts))
+               for ex in exercises for parts in _candidates(ex, flat))
+
+
+def _is_one_submission(path: Path, exercises: list[Exercise], layout: str) -> bool:
+    if layout != "auto":
+        return layout == "submission"
+    children = [p for p in path.iterdir() if p.is_dir() and not p.is_symlink() and not p.name.startswith(".")]
+    nested = [p.name for p in children if looks_like_submission(p, exercises, flat=False)]
+    if looks_like_submission(path, exercises):
+        if nested:
+            raise ValueError(f"{path}: holds exercise files and student folders "
+                             f"({printable(nested[0], 40)}); say --layout class or --layout submission")
+        return True
+    names = {e.name for e in exercises}  # exercise folders, none with its file: an empty submission
+    return not nested and any(p.name in names for p in children)
+
+
+def expand_submissions(paths: Iterable[str | Path], exercises: list[Exercise], layout: str = "auto",
+                       ignore: Iterable[str | Path] = ()) -> list[Submission]:
+    """Return the submissions of the command line: each path is one submission or a class of them.
+
+    ``layout`` is the rule of :mod:`mslab.grading.intake` (``auto``, ``class``,
+    ``submission``). Every entry of a class is a :class:`Submission`, refused ones with
+    their reason; ``ignore`` lists files the grading itself writes (the gradebook, its journal).
+    """
+    if layout not in LAYOUTS:
+        raise ValueError(f"unknown layout {layout!r} (choose from {', '.join(LAYOUTS)})")
+    skip = {os.path.abspath(p) for p in ignore}
     out = []
     for raw in paths:
         path = Path(raw)
         if not path.is_dir():
             raise ValueError(f"{path}: no such folder")
-        if is_submission(path, exercises):
-            out.append((path, _refusal(path)))
+        if _is_one_submission(path, exercises, layout):
+            refusal = "the submission folder is a symbolic link (refused)" if path.is_symlink() else ""
+            out.append(Submission(path, path.name or str(path), refusal=refusal))
             continue
-        students = [p for p in sorted(path.iterdir()) if p.is_dir() and not p.name.startswith(".")]
-        if not students:
-            raise ValueError(f"{path}: neither a submission (no exercise folders) nor a class of submissions")
-        out.extend((p, _refusal(p)) for p in students)
+        entries = [p for p in sorted(path.iterdir()) if os.path.abspath(p) not in skip]
+        if not entries:
+            raise ValueError(f"{path}: an empty class folder (no student folder, .zip or file)")
+        out.extend(class_entry(p, len(exercises) == 1) for p in entries)
     return out
 
 
-def _refusal(folder: Path) -> str:
-    return "the submission folder is a symbolic link (refused)" if folder.is_symlink() else ""
-
-
-def read_student_file(submission: Path, exercise: Exercise) -> tuple[str | None, str]:
+def read_student_file(submission: Submission, exercise: Exercise) -> tuple[str | None, str]:
     """Return the student's source for an exercise and ``""``, or None and why it was not read.
 
-    Only plain files count: no symbolic link (the folder, the exercise folder or the file),
-    no file with a second hard link (it could be the reference solution), nothing but a
-    regular file, opened without following links.
+    Read once, without following any symbolic link (:func:`mslab.grading.intake.read_path`);
+    a notebook counts by its code cells. A flat submission (the file at the top, as the
+    platforms hand it over) counts when the exercise's folder is absent.
     """
-    folder = submission / exercise.name
-    path = folder / exercise.module
-    name = exercise.module
-    try:
-        if folder.is_symlink():
-            return None, f"{exercise.name} is a symbolic link (refused)"
-        if path.is_symlink():
-            return None, f"{name} is a symbolic link (refused)"
-        if not os.path.lexists(path):
-            return None, f"{name} is missing from the submission"
-        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
-        with os.fdopen(fd, "rb") as fh:
-            st = os.fstat(fh.fileno())
-            if not stat.S_ISREG(st.st_mode):
-                return None, f"{name} is not a regular file (refused)"
-            if st.st_nlink != 1:
-                return None, f"{name} has {st.st_nlink} hard links (refused: submit a plain copy)"
-            if st.st_size > MAX_SOURCE:
-                return None, f"{name} is larger than {MAX_SOURCE} bytes"
-            data = fh.read(MAX_SOURCE + 1)
-        return data[:MAX_SOURCE].decode("utf-8", errors="replace"), ""
-    except OSError as err:
-        return None, f"{name} could not be read ({err.strerror})"
+    if submission.refusal:
+        return None, submission.refusal
+    if submission.kind == "file":
+        data, why = read_path(submission.path.parent, [submission.path.name])
+        return _decode(data, why, submission.path.name, exercise)
+    if submission.kind == "zip":
+        files, why = zip_files(submission.path)
+        if files is None:
+            return None, why
+        for parts in _candidates(exercise, exercise.name not in {n.split("/")[0] for n in files}):
+            if "/".join(parts) in files:
+                return _decode(files["/".join(parts)], "", parts[-1], exercise)
+        return None, f"{exercise.module} is missing from the submission"
+    flat = not os.path.lexists(submission.path / exercise.name)
+    for parts in _candidates(exercise, flat):
+        data, why = read_path(submission.path, parts)
+        if why != "missing":
+            return _decode(data, why, parts[-1], exercise)
+    return None, f"{exercise.module} is missing from the submission"
+
+
+def _decode(data: bytes | None, why: str, label: str, exercise: Exercise) -> tuple[str | None, str]:
+    if data is None:
+        return None, why
+    if label.endswith(".ipynb"):
+        return notebook_code(data, label)
+    if not label.endswith(".py"):
+        return None, f"{label}: not a Python file or notebook (refused)"
+    return data.decode("utf-8", errors="replace"), ""

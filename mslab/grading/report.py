@@ -8,6 +8,7 @@ spreadsheet would run as a formula (``= + - @``, tab, CR) prefixed with ``'``.
 from __future__ import annotations
 
 import csv
+import fcntl
 import hashlib
 import json
 import os
@@ -74,39 +75,61 @@ def write_csv(path: str | Path, rows: list[list[str]]) -> Path:
 
 
 class Journal:
-    """Outcomes of graded items, one JSON line each, appended as they arrive.
+    """Outcomes of graded items, one JSON line each, appended as they arrive; one grader at a time.
 
     An item is one exercise of one submission, keyed by the submission's path, the
-    exercise and a hash of the student's file; ``fingerprint`` (the instructor's tests and
-    the limits) must match for an outcome to be reused by ``--resume``.
+    exercise and a hash of the student's file; the fingerprint (the instructor's tests and
+    the limits, given by :meth:`bind`) must match for an outcome to be reused by
+    ``--resume``. The journal is locked (``flock``) from opening to :meth:`close`: a second
+    grader on the same gradebook is refused (ValueError) before it reads or truncates
+    anything, so it can neither corrupt the first one's lines nor delete them.
     """
 
-    def __init__(self, path: str | Path, fingerprint: str, resume: bool):
+    def __init__(self, path: str | Path, resume: bool):
         self.path = Path(path)
-        self.fingerprint = fingerprint
-        self.done: dict[str, dict] = {}
-        if resume and self.path.is_file():
-            for line in self.path.read_text(errors="replace").splitlines():
-                try:
-                    entry = json.loads(line)
-                except ValueError:
-                    continue  # the line in flight when the grader was killed
-                if isinstance(entry, dict) and entry.get("fingerprint") == fingerprint:
-                    self.done[str(entry.get("key"))] = entry.get("outcome")
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._fh = open(self.path, "a" if resume else "w")
+        self._fd = os.open(self.path, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o600)
+        try:
+            fcntl.flock(self._fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(self._fd)
+            raise ValueError(f"{self.path}: another mslab grade is grading into this gradebook "
+                             "(its journal is locked); wait for it to finish") from None
+        self.fingerprint = ""
+        self._lines: list[str] = []
+        self.done: dict[str, dict] = {}
+        if resume:
+            with os.fdopen(os.dup(self._fd), "rb") as fh:
+                self._lines = fh.read().decode(errors="replace").splitlines()
+        else:
+            os.ftruncate(self._fd, 0)
+
+    def bind(self, fingerprint: str) -> None:
+        """Set the fingerprint of this grading; outcomes journaled under it become :attr:`done`."""
+        self.fingerprint = fingerprint
+        for line in self._lines:
+            try:
+                entry = json.loads(line)
+            except ValueError:
+                continue  # the line in flight when the grader was killed
+            if isinstance(entry, dict) and entry.get("fingerprint") == fingerprint:
+                self.done[str(entry.get("key"))] = entry.get("outcome")
 
     def add(self, key: str, outcome: dict | None) -> None:
         """Append the outcome of the item ``key`` and flush it to disk."""
-        self._fh.write(json.dumps({"fingerprint": self.fingerprint, "key": key, "outcome": outcome}) + "\n")
-        self._fh.flush()
-        os.fsync(self._fh.fileno())
+        line = json.dumps({"fingerprint": self.fingerprint, "key": key, "outcome": outcome}) + "\n"
+        os.lseek(self._fd, 0, os.SEEK_END)
+        os.write(self._fd, line.encode())
+        os.fsync(self._fd)
 
     def close(self, finished: bool) -> None:
-        """Close the journal; a finished grading removes it."""
-        self._fh.close()
+        """Release the journal; a finished grading removes it first (still holding the lock)."""
+        if self._fd < 0:
+            return
         if finished:
             self.path.unlink(missing_ok=True)
+        os.close(self._fd)
+        self._fd = -1
 
 
 def item_key(submission: Path, exercise: str, source: str | None) -> str:

@@ -1,0 +1,203 @@
+"""Instructor options, one grader per gradebook, interruptions: refused or explained in one line.
+
+Each test grades one exercise at most (grading spawns processes).
+"""
+
+from __future__ import annotations
+
+import fcntl
+import json
+import os
+import shutil
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from mslab.cli import main as cli_main
+from mslab.commands import grade as grade_command
+from mslab.grading import find_exercises, grade
+from mslab.grading.intake import Submission
+from mslab.grading.layout import expand_submissions, read_student_file
+
+ROOT = Path(__file__).resolve().parents[1]
+SOURCE = ROOT / "exercises"
+TARGET, MODULE = "07_stability_function", "stability_function.py"
+
+
+@pytest.fixture
+def one_class(tmp_path) -> Path:
+    """A class of one: the reference solution of exercise 07."""
+    (tmp_path / "class" / "good" / TARGET).mkdir(parents=True)
+    shutil.copyfile(SOURCE / TARGET / MODULE, tmp_path / "class" / "good" / TARGET / MODULE)
+    return tmp_path / "class"
+
+
+def _one_line_error(capsys) -> str:
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("mslab: error: "), captured.err
+    assert "Traceback" not in captured.err
+    return lines[0]
+
+
+@pytest.mark.parametrize("option", [["--timeout", "inf"], ["--timeout", "nan"], ["--timeout", "0"],
+                                    ["--timeout", "1e-9"], ["--timeout", "-1"], ["--memory", "0"],
+                                    ["--memory", "-1"]])
+def test_limits_must_be_positive_finite_numbers(one_class, option, capsys, monkeypatch):
+    monkeypatch.setattr(grade_command, "grade", lambda *a, **k: pytest.fail("graded with a bad option"))
+    assert cli_main(["grade", str(one_class), "--source", str(SOURCE), "--exercise", TARGET, *option]) == 2
+    assert option[0] in _one_line_error(capsys)
+
+
+def test_csv_must_be_a_regular_file_or_a_new_one(one_class, tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(grade_command, "grade", lambda *a, **k: pytest.fail("graded with a bad --csv"))
+    for bad in ("/dev/full", str(tmp_path)):
+        assert cli_main(["grade", str(one_class), "--source", str(SOURCE), "--csv", bad]) == 2
+        assert "--csv" in _one_line_error(capsys)
+    assert os.path.exists("/dev/full") and not os.path.isfile("/dev/full")
+    link = tmp_path / "link.csv"
+    link.symlink_to(tmp_path / "elsewhere.csv")
+    assert cli_main(["grade", str(one_class), "--source", str(SOURCE), "--csv", str(link)]) == 2
+    assert "--csv" in _one_line_error(capsys)
+    assert not (tmp_path / "elsewhere.csv").exists()
+
+
+def test_a_second_grader_on_one_gradebook_is_refused_and_the_first_resumes(one_class, tmp_path, capsys):
+    csv_path, journal = tmp_path / "book.csv", tmp_path / "book.csv.journal"
+    journal.write_text('{"first": "line of the first grader"}\n')
+    with open(journal, "a") as held:  # the first grader, still grading
+        fcntl.flock(held.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        assert cli_main(["grade", str(one_class), "--source", str(SOURCE), "--exercise", TARGET,
+                         "--csv", str(csv_path), "--json"]) == 2
+        assert "locked" in _one_line_error(capsys)
+        assert journal.read_text() == '{"first": "line of the first grader"}\n'  # untouched, no NUL
+        assert not csv_path.exists()
+    assert cli_main(["grade", str(one_class), "--source", str(SOURCE), "--exercise", TARGET,
+                     "--csv", str(csv_path), "--resume", "--json"]) == 0
+    assert csv_path.read_text().splitlines()[1].startswith("good,")
+    assert not journal.exists()
+
+
+def test_two_graders_in_one_process_cannot_share_a_journal(one_class, tmp_path):
+    from mslab.grading.report import Journal
+
+    book = Journal(tmp_path / "j", resume=False)
+    try:
+        with pytest.raises(ValueError, match="locked"):
+            grade([one_class], source=SOURCE, only=[TARGET], journal=tmp_path / "j")
+    finally:
+        book.close(finished=False)
+
+
+def test_interrupted_grading_names_resume(one_class, tmp_path, capsys, monkeypatch):
+    def interrupted(*args, **kwargs):
+        kwargs["journal"].add("key", {"entry": None, "why": "x"})
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(grade_command, "grade", interrupted)
+    code = cli_main(["grade", str(one_class), "--source", str(SOURCE), "--csv", str(tmp_path / "b.csv")])
+    err = capsys.readouterr().err
+    assert code != 0
+    assert "--resume" in err and str(tmp_path / "b.csv.journal") in err
+    assert (tmp_path / "b.csv.journal").read_text().count("\n") == 1  # kept for --resume
+
+
+# -- classes as courses hand them in ----------------------------------------------------------------
+
+def _notebook(code: str) -> str:
+    cells = [{"cell_type": "markdown", "metadata": {}, "source": ["# my answer"]},
+             {"cell_type": "code", "metadata": {}, "execution_count": 1, "outputs": [],
+              "source": ["%matplotlib inline\n", *code.splitlines(keepends=True)]}]
+    return json.dumps({"cells": cells, "metadata": {}, "nbformat": 4, "nbformat_minor": 5})
+
+
+@pytest.fixture(scope="module")
+def handed_in(tmp_path_factory) -> Path:
+    """A class as a course collects it: folders, a zip, a notebook, a student named like an exercise."""
+    cls = tmp_path_factory.mktemp("handed") / "class"
+    reference = (SOURCE / TARGET / MODULE).read_text()
+    for student in ("alice", TARGET, ".dave"):
+        (cls / student / TARGET).mkdir(parents=True)
+        (cls / student / TARGET / MODULE).write_text(reference)
+    with zipfile.ZipFile(cls / "bob.zip", "w") as zf:
+        zf.writestr(f"bob/{TARGET}/{MODULE}", reference)
+    with zipfile.ZipFile(cls / "mallory.zip", "w") as zf:  # only a member outside its folder
+        zf.writestr(f"../../{MODULE}", reference)
+    (cls / "carol.ipynb").write_text(_notebook(reference))
+    (cls / "notes.txt").write_text("not a submission")
+    return cls
+
+
+@pytest.fixture(scope="module")
+def handed_in_graded(handed_in) -> dict:
+    return {r.student: r for r in grade([handed_in], source=SOURCE, jobs=1, only=[TARGET])}
+
+
+def test_every_entry_of_a_class_gets_a_row(handed_in_graded):
+    assert sorted(handed_in_graded) == sorted([".dave", TARGET, "alice", "bob", "carol", "mallory",
+                                               "notes.txt"])
+
+
+def test_folders_zips_notebooks_and_exercise_named_students_are_graded(handed_in_graded):
+    for name in ("alice", TARGET, "bob", "carol"):
+        r = handed_in_graded[name]
+        assert r.total == r.max_points > 0, (name, [t.reason for e in r.exercises for t in e.tests])
+
+
+def test_what_cannot_be_graded_says_why(handed_in_graded):
+    reasons = {name: handed_in_graded[name].exercises[0].errors for name in (".dave", "notes.txt", "mallory")}
+    assert "hidden entry" in reasons[".dave"][0]
+    assert "not a folder, .zip, .py or .ipynb" in reasons["notes.txt"][0]
+    assert "missing" in reasons["mallory"][0]  # the ../ member is never looked at
+    assert all(handed_in_graded[n].total == 0 for n in reasons)
+
+
+def test_layout_rule_and_flag(handed_in, tmp_path):
+    exercises = [e for e in find_exercises(SOURCE) if e.name == TARGET]
+    assert len(expand_submissions([handed_in], exercises)) == 7
+    one = expand_submissions([handed_in], exercises, layout="submission")
+    assert [s.path for s in one] == [handed_in]
+    inner = expand_submissions([handed_in / "alice"], exercises)  # a submission: its file decides
+    assert [s.name for s in inner] == ["alice"]
+    ambiguous = tmp_path / "ambiguous"
+    shutil.copytree(handed_in / "alice", ambiguous)
+    shutil.copytree(handed_in / "alice", ambiguous / "eve")
+    with pytest.raises(ValueError, match="--layout"):
+        expand_submissions([ambiguous], exercises)
+    assert [s.name for s in expand_submissions([ambiguous], exercises, layout="class")] == [TARGET, "eve"]
+
+
+def test_a_flat_upload_is_graded_as_the_exercise(tmp_path, capsys):
+    flat = tmp_path / "submission"
+    flat.mkdir()
+    shutil.copyfile(SOURCE / TARGET / MODULE, flat / MODULE)
+    assert cli_main(["grade", str(flat), "--source", str(SOURCE), "--exercise", TARGET, "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["total"] == doc["max"] > 0, doc
+
+
+def test_a_file_swapped_for_a_link_is_never_followed(tmp_path):
+    sub = tmp_path / "sub"
+    (sub / TARGET).mkdir(parents=True)
+    (sub / TARGET / MODULE).symlink_to(SOURCE / TARGET / MODULE)
+    ex = next(e for e in find_exercises(SOURCE) if e.name == TARGET)
+    text, why = read_student_file(Submission(sub, "sub"), ex)
+    assert text is None and "symbolic link" in why
+    (sub / TARGET / MODULE).unlink()
+    os.rmdir(sub / TARGET)
+    (sub / TARGET).symlink_to(SOURCE / TARGET)
+    text, why = read_student_file(Submission(sub, "sub"), ex)
+    assert text is None and "symbolic link" in why
+
+
+def test_a_zip_bomb_is_refused_unread(tmp_path):
+    cls = tmp_path / "class"
+    cls.mkdir()
+    with zipfile.ZipFile(cls / "bomb.zip", "w", zipfile.ZIP_DEFLATED) as zf:
+        for k in range(6):
+            zf.writestr(f"{TARGET}/pad{k}.py", b"0" * 10_000_000)
+    ex = next(e for e in find_exercises(SOURCE) if e.name == TARGET)
+    (sub,) = expand_submissions([cls], [ex])
+    text, why = read_student_file(sub, ex)
+    assert text is None and "unpacks to more than" in why
