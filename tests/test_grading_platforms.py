@@ -384,6 +384,9 @@ def test_a_platform_package_grades_an_honest_upload_in_rlimits_mode(packages, tm
 
 @pytest.mark.parametrize("platform", ["gradescope", "prairielearn"])
 def test_a_hostile_upload_reads_no_hidden_test(packages, tmp_path, platform):
+    """Issue 40: as root in rlimits mode the student ran as root and quoted test_hidden.py in a
+    public test's reason; the rlimits privilege drop (a throwaway uid) must leave it unreadable.
+    (With MSLAB_ISOLATION=auto, namespaces, the same attack reads "blocked FileNotFoundError".)"""
     root = tmp_path / ("autograder" if platform == "gradescope" else "grade")
     tests, results = _tests_folder(platform, root), root / "results"
     attack = HOSTILE.format(targets=[str(tests / "test_hidden.py"), str(tests / "test_public.py")],
