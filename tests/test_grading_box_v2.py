@@ -16,12 +16,14 @@ import os
 import signal
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
 
 from mslab.grading import box
-from mslab.grading.box import MAX_PROCESSES, NEEDED_V2, PREFIX, Box, describe, setup, teardown
+from mslab.grading.box import MAX_PROCESSES, NEEDED_V2, Box, describe, setup, teardown
+from mslab.grading.owner import PREFIX, Owned
 from mslab.grading.remote import Budget
 
 ENABLE = " ".join(f"+{c}" for c in NEEDED_V2)
@@ -35,11 +37,15 @@ MOUNTINFO = """\
 """
 
 
-def _dead_pid() -> int:
-    """The pid of a process that has ended (a stale grader)."""
-    proc = subprocess.Popen([sys.executable, "-c", "pass"])
-    proc.wait()
-    return proc.pid
+def _graders(tmp_path: Path, monkeypatch) -> tuple[str, Owned]:
+    """A killed grader's folder (its lock free) and a live one's (locked), in a private temp folder."""
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp))
+    dead = tmp / f"{PREFIX}0123456789abcdef"
+    dead.mkdir()
+    (dead / ".owner").write_text("")  # nobody holds its lock: the grader was killed
+    return dead.name, Owned()
 
 
 def _cgroup(path: Path, controllers: str = "cpuset cpu io memory pids") -> Path:
@@ -75,20 +81,25 @@ def test_mounts_and_own_cgroup_are_read_from_the_kernels_tables(tmp_path):
 def root_grader(tmp_path, monkeypatch):
     """A fake v2 hierarchy, the grader as root, one stale and one live grading's cgroups."""
     root = _cgroup(tmp_path / "cgroup2")
-    stale = root / f"{PREFIX}{_dead_pid()}"
+    dead, live_owner = _graders(tmp_path, monkeypatch)
+    stale = root / dead
     (stale / "sb-0123456789ab").mkdir(parents=True)
-    live = root / f"{PREFIX}{os.getppid()}"
+    live = root / live_owner.name
     live.mkdir()
+    legacy = root / f"{PREFIX}{os.getppid()}"  # no folder to test: left alone
+    legacy.mkdir()
     monkeypatch.setattr(box.os, "geteuid", lambda: 0)
     monkeypatch.setattr(box, "_mounts", lambda: (str(root), {}))
-    config, why = setup(jobs=3)
+    config, why = setup(jobs=3, name=f"{PREFIX}me")
     assert why == ""
-    return root, config, stale, live
+    assert legacy.is_dir()
+    yield root, config, stale, live
+    live_owner.close()
 
 
 def test_v2_setup_as_root_enables_the_controllers_and_weights_the_grading(root_grader):
     root, config, stale, live = root_grader
-    parent = root / f"{PREFIX}{os.getpid()}"
+    parent = root / f"{PREFIX}me"
     assert config == {"version": 2, "dirs": {"": str(parent)}}
     assert (root / "cgroup.subtree_control").read_text() == ENABLE
     assert (parent / "cgroup.subtree_control").read_text() == ENABLE
@@ -146,19 +157,24 @@ def test_v2_box_caps_meters_and_kills_its_sandbox(root_grader):
 def test_v2_setup_for_a_delegated_user_moves_the_grader_into_a_leaf(tmp_path, monkeypatch):
     root = tmp_path / "cgroup2"
     scope = _cgroup(root / "user.slice" / "run-r1.scope", "cpu memory pids")
-    stale_leaf = scope / f"{PREFIX}{_dead_pid()}-grader"
+    dead, live_owner = _graders(tmp_path, monkeypatch)
+    stale_leaf = scope / f"{dead}-grader"
     stale_leaf.mkdir()
+    live_leaf = scope / f"{live_owner.name}-grader"
+    live_leaf.mkdir()
     monkeypatch.setattr(box.os, "geteuid", lambda: 1000)
     monkeypatch.setattr(box, "_mounts", lambda: (str(root), {}))
     monkeypatch.setattr(box, "_own", lambda hierarchy: "/user.slice/run-r1.scope")
-    config, why = setup(jobs=2)
+    config, why = setup(jobs=2, name=f"{PREFIX}me")
     assert why == ""
-    leaf = scope / f"{PREFIX}{os.getpid()}-grader"
+    leaf = scope / f"{PREFIX}me-grader"
     assert (leaf / "cgroup.procs").read_text() == "0"  # "0": the writing process itself
     assert (scope / "cgroup.subtree_control").read_text() == ENABLE
-    assert config == {"version": 2, "dirs": {"": str(scope / f"{PREFIX}{os.getpid()}")}}
-    assert (scope / f"{PREFIX}{os.getpid()}" / "cpu.weight").read_text() == "200"
+    assert config == {"version": 2, "dirs": {"": str(scope / f"{PREFIX}me")}}
+    assert (scope / f"{PREFIX}me" / "cpu.weight").read_text() == "200"
     assert not stale_leaf.exists()  # a killed grader's leaf is removed by the next grading
+    assert live_leaf.is_dir()  # a live one's, whatever its PID namespace, is not
+    live_owner.close()
     assert not (root / "cgroup.subtree_control").exists()  # nothing written above the delegation
 
 

@@ -9,6 +9,9 @@ import fcntl
 import json
 import os
 import shutil
+import subprocess
+import sys
+import time
 import zipfile
 from pathlib import Path
 
@@ -16,8 +19,10 @@ import pytest
 
 from mslab.cli import main as cli_main
 from mslab.commands import grade as grade_command
-from mslab.grading import find_exercises, grade
+from mslab.grading import autograde, find_exercises, grade
+from mslab.grading.dispatch import run_runner
 from mslab.grading.intake import Submission
+from mslab.grading.isolation import detect, unreachable_for_others
 from mslab.grading.layout import expand_submissions, read_student_file
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -201,3 +206,81 @@ def test_a_zip_bomb_is_refused_unread(tmp_path):
     (sub,) = expand_submissions([cls], [ex])
     text, why = read_student_file(sub, ex)
     assert text is None and "unpacks to more than" in why
+
+
+# -- graders side by side ---------------------------------------------------------------------------
+
+@pytest.mark.skipif(os.geteuid() != 0 or not shutil.which("unshare"),
+                    reason="needs root and unshare to start the second grader in a PID namespace of its own")
+def test_two_graders_in_two_pid_namespaces_over_one_temporary_folder(tmp_path):
+    """The second grader's clean-up, blind to the first one's PIDs, removes nothing of it."""
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    first, second = tmp_path / "first", tmp_path / "second"
+    for cls in (first, second):
+        (cls / "b_honest" / TARGET).mkdir(parents=True)
+        shutil.copyfile(SOURCE / TARGET / MODULE, cls / "b_honest" / TARGET / MODULE)
+    (first / "a_spinner" / TARGET).mkdir(parents=True)  # holds the first runner while the second starts
+    (first / "a_spinner" / TARGET / MODULE).write_text("while True:\n    pass\n")
+    env = dict(os.environ, TMPDIR=str(tmp), PYTHONPATH=str(ROOT))
+    cmd = [sys.executable, "-m", "mslab", "grade", "--source", str(SOURCE), "--exercise", TARGET,
+           "--jobs", "1", "--json"]
+    proc = subprocess.Popen([*cmd, str(first)], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not list(tmp.glob("mslab-grade-*/runner-*")) and proc.poll() is None:
+            assert time.monotonic() < deadline, "the first grader started no runner"
+            time.sleep(0.05)  # waits for a condition, not a duration
+        other = subprocess.run(["unshare", "--pid", "--fork", *cmd, str(second)], env=env,
+                               capture_output=True, text=True, timeout=300)
+        out, err = proc.communicate(timeout=600)
+    finally:
+        proc.kill()
+    assert other.returncode == 0, other.stderr[-2000:]
+    assert json.loads(other.stdout)["total"] == json.loads(other.stdout)["max"] > 0
+    assert proc.returncode == 0, err[-2000:]
+    results = {d["student"]: d for d in json.loads(out)["submissions"]}
+    assert results["b_honest"]["total"] == results["b_honest"]["max"] > 0, results["b_honest"]
+    assert results["a_spinner"]["total"] == 0
+    assert list(tmp.iterdir()) == []  # nothing left by either
+
+
+# -- wall time per submission -----------------------------------------------------------------------
+
+def test_a_sleeper_costs_its_own_wall_budget_once(tmp_path, monkeypatch):
+    """The runner is stopped at the sleeping item's own budget; the item is not re-run, the next one is."""
+    ex = next(e for e in find_exercises(SOURCE) if e.name == TARGET)
+    home = tmp_path / "home"
+    home.mkdir()
+
+    def item(key: str, text: str) -> dict:
+        return {"key": key, "name": ex.name, "module": ex.module, "student_source": text, "tests": ex.tests,
+                "n_tests": len(ex.points), "cpu_s": 60}
+
+    sleeper = item("sleeper", "import time\ntime.sleep(10 ** 6)\n")
+    honest = item("honest", (SOURCE / TARGET / MODULE).read_text())
+    mode = detect("auto")
+    if mode == "rlimits" and os.geteuid() == 0 and unreachable_for_others():
+        pytest.skip("no isolation mode can start a sandbox here")
+    job = {"nonce": "ab" * 16, "timeout": 10.0, "memory_mb": 1024, "isolation": mode,
+           "import_timeout": 30.0, "cgroups": None, "home": str(home), "items": [sleeper, honest]}
+    done, why, overran = run_runner(job, [3.0, 600.0], lambda k, o: None)
+    assert (done, overran) == (set(), "sleeper")
+    assert "wall-clock limit of 3 s for one exercise of one submission" in why
+    assert list(home.iterdir()) == []
+
+    calls, seen = [], {}
+
+    def fake_run_items(items, ctx, on_item):  # the runner stopped at the sleeper's budget
+        calls.append([it["key"] for it in items])
+        if items[0]["key"] == "sleeper":
+            return set(), why, "sleeper"
+        for it in items:
+            on_item(it["key"], {"results": {}, "errors": []})
+        return {it["key"] for it in items}, "", ""
+
+    monkeypatch.setattr(autograde, "_run_items", fake_run_items)
+    autograde._run_chunk([sleeper, honest], {}, lambda k, o, w: seen.setdefault(k, (o, w)))
+    assert calls == [["sleeper", "honest"], ["honest"]]  # never the sleeper alone a second time
+    assert seen["sleeper"] == (None, why) and seen["honest"][0] is not None

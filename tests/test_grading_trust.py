@@ -398,6 +398,45 @@ def _closed_ancestor(path: str) -> str | None:
     return None
 
 
+def _open_views(work: Path, paths: list[str]) -> str:
+    """Shell commands that make ``paths`` reachable by other users in a private mount namespace.
+
+    Each closed folder on the way is covered by an open tmpfs on which the folders beneath
+    it that lead to ``paths`` are bound back; skips the test if a folder closed to others
+    lies deeper still.
+    """
+    inners: dict[str, set[str]] = {}
+    for path in paths:
+        real = os.path.realpath(path)
+        closed = _closed_ancestor(real)
+        if closed:
+            inner = os.path.join(closed, Path(real).relative_to(closed).parts[0])
+            if _closed_below(inner, real):
+                pytest.skip(f"{real} lies in more than one folder closed to other users")
+            inners.setdefault(closed, set()).add(inner)
+    script, n = "", 0
+    for closed, folders in sorted(inners.items()):
+        keeps = []
+        for inner in sorted(folders):
+            n += 1
+            keeps.append((f"{work}/.keep{n}", inner))
+            script += f"mkdir -p {work}/.keep{n} && mount --bind '{inner}' {work}/.keep{n} && "
+        script += f"mount -t tmpfs -o mode=755 tmpfs '{closed}' && "
+        for keep, inner in keeps:
+            script += f"mkdir -p '{inner}' && mount --bind {keep} '{inner}' && "
+    return script
+
+
+def _closed_below(top: str, path: str) -> bool:
+    """Whether a folder from ``top`` down to ``path`` (both included) is closed to other users."""
+    parts = Path(path).relative_to(top).parts
+    for k in range(len(parts) + 1):
+        folder = os.path.join(top, *parts[:k])
+        if os.path.isdir(folder) and not os.stat(folder).st_mode & 0o001:
+            return True
+    return False
+
+
 @pytest.mark.skipif(
     os.geteuid() != 0
     or not shutil.which("useradd")
@@ -436,17 +475,10 @@ def test_grading_as_an_unprivileged_user(tmp_path):
             TARGET,
             "--json",
         ]
-        # where the interpreter sits in a folder closed to other users (pyenv under /root), the
-        # test opens a view of it in a private mount namespace: the system is not changed
-        closed = _closed_ancestor(os.path.realpath(sys.base_prefix))
-        setup = ""
-        if closed:
-            inner = os.path.join(closed, Path(os.path.realpath(sys.base_prefix)).relative_to(closed).parts[0])
-            setup = (
-                f"mkdir -p {work}/.keep && mount --bind {inner} {work}/.keep && "
-                f"mount -t tmpfs -o mode=755 tmpfs {closed} && mkdir -p {inner} && "
-                f"mount --bind {work}/.keep {inner} && "
-            )
+        # where the interpreter, the venv or this checkout sits in a folder closed to other users
+        # (pyenv under /root, a fresh clone in a `mktemp -d` folder), the test opens a view of
+        # it in a private mount namespace: the system is not changed
+        setup = _open_views(work, [sys.base_prefix, sys.prefix, str(ROOT)])
         env = dict(
             os.environ,
             PYTHONPATH=str(ROOT),

@@ -26,9 +26,10 @@ from typing import TYPE_CHECKING
 from mslab.grading.box import describe
 from mslab.grading.box import setup as setup_cgroups
 from mslab.grading.box import teardown as teardown_cgroups
-from mslab.grading.dispatch import RUNNER_SLACK, STOP, clean_stale_folders, run_runner
-from mslab.grading.isolation import DESCRIPTION, detect
+from mslab.grading.dispatch import RUNNER_SLACK, STOP, run_runner
+from mslab.grading.isolation import DESCRIPTION, detect, unreachable_for_others
 from mslab.grading.layout import HIDDEN, Exercise, expand_submissions, find_exercises, read_student_file
+from mslab.grading.owner import Owned, clean_abandoned, closed_to_others
 from mslab.grading.remote import PHRASES, set_not_dumpable, wall_backstop
 from mslab.grading.report import Journal, fingerprint, format_report, gradebook_rows, item_key, printable
 
@@ -148,35 +149,45 @@ def _score(exercise: Exercise, outcome: dict, errors: list[str], reason_all: str
     return result
 
 
-def _run_items(items: list[dict], timeout: float, memory_mb: int, mode: str, cgroups: dict | None,
-               on_item: Callable[[str, dict], None]) -> tuple[set, str]:
-    """Run items in one runner: ``(keys finished, why some are missing)``."""
-    job = {"nonce": secrets.token_hex(16), "timeout": timeout, "memory_mb": memory_mb, "isolation": mode,
-           "import_timeout": IMPORT_CPU, "cgroups": cgroups, "items": items}
-    wall = sum(wall_backstop(timeout) * (it["n_tests"] + 1) + wall_backstop(IMPORT_CPU) for it in items)
-    return run_runner(job, wall + RUNNER_SLACK, on_item)
+def _run_items(items: list[dict], ctx: dict, on_item: Callable[[str, dict], None]) -> tuple[set, str, str]:
+    """Run items in one runner: ``(keys finished, why some are missing, the item that overran)``.
+
+    ``ctx``: ``timeout``, ``memory_mb``, ``mode`` (isolation), ``cgroups`` and ``home``
+    (the grading's own folder, where the runner's folder is made).
+    """
+    timeout = ctx["timeout"]
+    job = {"nonce": secrets.token_hex(16), "timeout": timeout, "memory_mb": ctx["memory_mb"],
+           "isolation": ctx["mode"], "import_timeout": IMPORT_CPU, "cgroups": ctx["cgroups"],
+           "home": ctx["home"], "items": items}
+    walls = [wall_backstop(timeout) * (it["n_tests"] + 1) + wall_backstop(IMPORT_CPU) + RUNNER_SLACK
+             for it in items]
+    return run_runner(job, walls, on_item)
 
 
-def _run_chunk(items: list[dict], timeout: float, memory_mb: int, mode: str, cgroups: dict | None,
-               on_item: Callable[[str, dict | None, str], None]) -> None:
+def _run_chunk(items: list[dict], ctx: dict, on_item: Callable[[str, dict | None, str], None]) -> None:
     """Run a chunk of items; ``on_item(key, outcome or None, why)`` for each.
 
-    The runner grades items in order and reports each as it finishes. If it dies or
-    overruns, the first unfinished item is the suspect: it is re-run alone, and the items
-    after it get a fresh runner, so one submission can never cost another one points.
+    The runner grades items in order and reports each as it finishes. An item that
+    overruns its own wall-clock budget is reported so (not re-run: a sleeping sandbox costs
+    its own budget once, never its classmates'). If the runner dies, the first unfinished
+    item is the suspect: it is re-run alone, and the items after it get a fresh runner, so
+    one submission can never cost another one points.
     """
     pending = list(items)
     while pending and not STOP.is_set():
-        done, why = _run_items(pending, timeout, memory_mb, mode, cgroups, lambda k, o: on_item(k, o, ""))
+        done, why, overran = _run_items(pending, ctx, lambda k, o: on_item(k, o, ""))
         rest = [it for it in pending if it["key"] not in done]
         if not rest or STOP.is_set():
             break
+        if overran:
+            on_item(overran, None, why)
+            pending = [it for it in rest if it["key"] != overran]
+            continue
         suspect = rest[0]
         if len(pending) == 1:  # it already ran alone
             on_item(suspect["key"], None, why or "not graded")
             break
-        alone, why_alone = _run_items([suspect], timeout, memory_mb, mode, cgroups,
-                                      lambda k, o: on_item(k, o, ""))
+        alone, why_alone, _ = _run_items([suspect], ctx, lambda k, o: on_item(k, o, ""))
         if suspect["key"] not in alone:
             on_item(suspect["key"], None, why_alone or "not graded")
         pending = rest[1:]
@@ -226,29 +237,38 @@ def grade(paths: Iterable[str | Path], source: str | Path, jobs: int | None = No
         why = ("--isolation rlimits was chosen" if isolation == "rlimits"
                else "this machine offers no namespaces (no bwrap, no user namespaces)")
         raise ValueError(f"isolation required, but {why}: grading would run student code without namespaces")
+    if mode == "rlimits" and os.geteuid() == 0 and (where := unreachable_for_others()):
+        raise ValueError(f"isolation rlimits as root runs student code as a throwaway user, who cannot "
+                         f"reach {where}: install Python and numpy where other users can run them")
     jobs = max(1, jobs or os.cpu_count() or 1)
-    cgroups, why_not = setup_cgroups(jobs)
-    if require_isolation and cgroups is None:
-        raise ValueError(f"isolation required, but no cgroup can cap each sandbox's processes, memory "
-                         f"and CPU share here ({why_not})")
     book = journal if isinstance(journal, Journal) or journal is None else Journal(journal, resume)
+    owned = Owned()
+    cgroups = None
     finished = False
     try:
-        results = _grade(paths, source, jobs, timeout, memory_mb, only, (mode, isolation), cgroups, why_not,
-                         book, progress, (layout, ignore))
+        cgroups, why_not = setup_cgroups(jobs, owned.name)
+        if require_isolation and cgroups is None:
+            raise ValueError(f"isolation required, but no cgroup can cap each sandbox's processes, memory "
+                             f"and CPU share here ({why_not})")
+        ctx = {"timeout": timeout, "memory_mb": memory_mb, "mode": mode, "cgroups": cgroups,
+               "home": str(owned.folder), "asked": isolation, "why_not": why_not}
+        paths = list(paths)
+        guarded = [source, *paths] if mode == "rlimits" and os.geteuid() == 0 else []
+        with closed_to_others(guarded):
+            results = _grade(paths, source, jobs, only, ctx, book, progress, (layout, ignore))
         finished = True
         return results
     finally:
         teardown_cgroups(cgroups)
+        owned.close()
         if book is not None and book is not journal:
             book.close(finished)
 
 
-def _grade(paths: Iterable[str | Path], source: str | Path, jobs: int, timeout: float, memory_mb: int,
-           only: list[str] | None, modes: tuple[str, str], cgroups: dict | None, why_not: str,
+def _grade(paths: Iterable[str | Path], source: str | Path, jobs: int, only: list[str] | None, ctx: dict,
            book: Journal | None, progress: Callable[[int, int], None] | None,
            intake: tuple[str, Iterable]) -> list[SubmissionResult]:
-    mode, asked = modes
+    timeout, memory_mb, mode, cgroups = ctx["timeout"], ctx["memory_mb"], ctx["mode"], ctx["cgroups"]
     exercises = find_exercises(source)
     if only:
         unknown = set(only) - {e.name for e in exercises}
@@ -256,7 +276,7 @@ def _grade(paths: Iterable[str | Path], source: str | Path, jobs: int, timeout: 
             raise ValueError(f"unknown exercise(s): {', '.join(sorted(unknown))}")
         exercises = [e for e in exercises if e.name in only]
     submissions = expand_submissions(paths, exercises, *intake)
-    clean_stale_folders()
+    clean_abandoned()
     if book is not None:
         book.bind(fingerprint(exercises, timeout, memory_mb))
     outcomes: dict[str, tuple] = {}
@@ -294,7 +314,7 @@ def _grade(paths: Iterable[str | Path], source: str | Path, jobs: int, timeout: 
     chunks = [items[j::jobs] for j in range(jobs) if items[j::jobs]]
     STOP.clear()
     with _interrupts(), ThreadPoolExecutor(max_workers=jobs) as pool:
-        futures = [pool.submit(_run_chunk, chunk, timeout, memory_mb, mode, cgroups, on_item)
+        futures = [pool.submit(_run_chunk, chunk, ctx, on_item)
                    for chunk in chunks]
         try:
             for f in futures:
@@ -303,10 +323,10 @@ def _grade(paths: Iterable[str | Path], source: str | Path, jobs: int, timeout: 
             STOP.set()
             raise
     results = []
-    boxed = describe(cgroups, memory_mb) + ("" if cgroups else f" ({why_not})")
+    boxed = describe(cgroups, memory_mb) + ("" if cgroups else f" ({ctx['why_not']})")
     for k, sub in enumerate(submissions):
         res = SubmissionResult(str(sub.path), printable(sub.name), isolation=DESCRIPTION[mode],
-                               resources=boxed, isolation_asked=asked)
+                               resources=boxed, isolation_asked=ctx["asked"])
         for ex in exercises:
             if (k, ex.name) in fixed:
                 why = fixed[(k, ex.name)]

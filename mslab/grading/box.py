@@ -13,8 +13,8 @@ cgroup v2 (``pids``, ``memory``, ``cpu`` enabled): as root under the hierarchy's
 as another user inside its own cgroup when that is delegated to it (e.g. ``systemd-run
 --user --scope -p Delegate=yes mslab grade ...``): the grader moves itself into a leaf
 and makes the boxes its siblings (a leaf cannot be removed by the process inside it: the
-next grading removes those of graders that have ended). cgroup v1 (hybrid machines, root
-only): ``pids``, ``memory``, ``cpu`` and ``cpuacct`` hierarchies.
+next grading removes those of graders that have ended, :mod:`mslab.grading.owner`).
+cgroup v1 (hybrid machines, root only): ``pids``, ``memory``, ``cpu`` and ``cpuacct`` hierarchies.
 """
 
 from __future__ import annotations
@@ -22,16 +22,17 @@ from __future__ import annotations
 import os
 import secrets
 import signal
+import tempfile
 import time
 from pathlib import Path
+
+from mslab.grading.owner import PREFIX, is_abandoned
 
 #: the controllers a box needs, by cgroup version
 NEEDED_V2 = ("pids", "memory", "cpu")
 NEEDED_V1 = ("pids", "memory", "cpu", "cpuacct")
 #: processes a whole sandbox may have at once
 MAX_PROCESSES = 64
-#: name of the grader's parent cgroup (its pid follows; stale ones are removed)
-PREFIX = "mslab-grade-"
 
 
 def _write(path: str | Path, text: str) -> None:
@@ -67,17 +68,21 @@ def _own(hierarchy: str, table: str = "/proc/self/cgroup") -> str:
 
 
 def _clean_stale(parent: Path) -> None:
-    """Remove the parent cgroups of graders that were killed (their pid is gone)."""
-    for folder in parent.glob(f"{PREFIX}*"):  # PID, or PID-grader (a delegated grader's leaf)
-        try:
-            os.kill(int(folder.name[len(PREFIX):].split("-")[0]), 0)
-        except ProcessLookupError:
-            for child in folder.iterdir():
-                if child.is_dir():
-                    _rmdir(child)
-            _rmdir(folder)
-        except (ValueError, OSError):
+    """Remove the parent cgroups of graders that have ended (their folder's lock is free).
+
+    A cgroup ``mslab-grade-<token>`` (or ``...-grader``, a delegated grader's leaf) belongs
+    to the grading whose folder ``<tmp>/mslab-grade-<token>`` is locked
+    (:mod:`mslab.grading.owner`); without that folder to test it is left alone (a grader
+    sharing the cgroup tree but not the temporary folder cannot be proven gone).
+    """
+    for folder in parent.glob(f"{PREFIX}*"):
+        name = folder.name.removesuffix("-grader")
+        if not is_abandoned(Path(tempfile.gettempdir()) / name):
             continue
+        for child in folder.iterdir():
+            if child.is_dir():
+                _rmdir(child)
+        _rmdir(folder)
 
 
 def _rmdir(path: Path, tries: int = 50) -> bool:
@@ -105,7 +110,7 @@ def _kill_procs(path: Path) -> None:
             pass
 
 
-def _setup_v2(mount: str, jobs: int) -> dict:
+def _setup_v2(mount: str, jobs: int, name: str) -> dict:
     root = Path(mount)
     if os.geteuid() == 0:
         base = root
@@ -115,19 +120,19 @@ def _setup_v2(mount: str, jobs: int) -> dict:
         missing = set(NEEDED_V2) - set((base / "cgroup.controllers").read_text().split())
         if missing:
             raise OSError(f"controllers {', '.join(sorted(missing))} are not delegated to this user")
-        leaf = base / f"{PREFIX}{os.getpid()}-grader"
+        leaf = base / f"{name}-grader"
         leaf.mkdir(exist_ok=True)
         _write(leaf / "cgroup.procs", "0")
         _write(base / "cgroup.subtree_control", " ".join(f"+{c}" for c in NEEDED_V2))
     _clean_stale(base)
-    parent = base / f"{PREFIX}{os.getpid()}"
+    parent = base / name
     parent.mkdir()
     _write(parent / "cgroup.subtree_control", " ".join(f"+{c}" for c in NEEDED_V2))
     _write(parent / "cpu.weight", str(min(10_000, 100 * jobs)))
     return {"version": 2, "dirs": {"": str(parent)}}
 
 
-def _setup_v1(mounts: dict[str, str], jobs: int) -> dict:
+def _setup_v1(mounts: dict[str, str], jobs: int, name: str) -> dict:
     if os.geteuid() != 0:
         raise OSError("cgroup v1 hierarchies are not delegated to users")
     missing = set(NEEDED_V1) - set(mounts)
@@ -137,15 +142,20 @@ def _setup_v1(mounts: dict[str, str], jobs: int) -> dict:
     for ctrl in NEEDED_V1:
         base = Path(mounts[ctrl]) / _own(ctrl).lstrip("/")
         _clean_stale(base)
-        parent = base / f"{PREFIX}{os.getpid()}"
+        parent = base / name
         parent.mkdir(exist_ok=True)
         dirs[ctrl] = str(parent)
     _write(Path(dirs["cpu"]) / "cpu.shares", str(1024 * jobs))
     return {"version": 1, "dirs": dirs}
 
 
-def setup(jobs: int) -> tuple[dict | None, str]:
-    """Make the grading's parent cgroup; ``(config for the runners, "")`` or ``(None, why not)``."""
+def setup(jobs: int, name: str | None = None) -> tuple[dict | None, str]:
+    """Make the grading's parent cgroup; ``(config for the runners, "")`` or ``(None, why not)``.
+
+    ``name`` is the grading's owned folder's name (:class:`mslab.grading.owner.Owned`),
+    which stale clean-up tests; default ``mslab-grade-<pid>`` (never found abandoned).
+    """
+    name = name or f"{PREFIX}{os.getpid()}"
     try:
         v2, v1 = _mounts()
     except OSError as err:
@@ -153,12 +163,12 @@ def setup(jobs: int) -> tuple[dict | None, str]:
     reasons = []
     if v2 is not None:
         try:
-            return _setup_v2(v2, jobs), ""
+            return _setup_v2(v2, jobs, name), ""
         except OSError as err:
             reasons.append(f"cgroup v2: {err.strerror or err}")
     if v1:
         try:
-            return _setup_v1(v1, jobs), ""
+            return _setup_v1(v1, jobs, name), ""
         except OSError as err:
             reasons.append(f"cgroup v1: {err.strerror or err}")
     return None, "; ".join(reasons) or "no cgroup file system"

@@ -2,8 +2,9 @@
 
 The runner (:mod:`mslab.grading.runner`) is trusted but its students are not, so the
 grader treats it as unreliable: it bounds its memory and output, kills it at a wall-clock
-limit, and owns its temporary folder (removed however the runner ended; folders of a
-killed grader are removed by the next one).
+limit, and owns its temporary folder, inside the grading's own folder
+(:mod:`mslab.grading.owner`): removed however the runner ended, and a killed grader's
+folders by the next grader, never a live one's.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from mslab.grading.isolation import HOME_ENV
 from mslab.grading.remote import PR_SET_PDEATHSIG
 
 #: seconds a runner may need beyond its tests' time limits (interpreter, pytest, imports)
@@ -34,8 +36,6 @@ RUNNER_BOOT = "import sys; sys.path.insert(0, {root!r}); from mslab.grading.runn
 MAX_RUNNER_OUTPUT = 16 * 1024 * 1024
 #: address-space limit of a test runner (MB): it decodes what the sandbox answers
 RUNNER_MEMORY_MB = 4096
-#: temporary folders of the grader: ``mslab-grade-<pid>-...`` (stale ones are removed)
-TMP_PREFIX = "mslab-grade-"
 #: set when grading is interrupted: every runner is stopped and its folder removed
 STOP = threading.Event()
 
@@ -51,29 +51,24 @@ def _runner_limits() -> None:
         pass
 
 
-def clean_stale_folders() -> None:
-    """Remove the temporary folders of graders that were killed (their pid is gone)."""
-    for folder in Path(tempfile.gettempdir()).glob(f"{TMP_PREFIX}*"):
-        try:
-            pid = int(folder.name[len(TMP_PREFIX):].split("-")[0])
-            os.kill(pid, 0)
-        except ProcessLookupError:
-            shutil.rmtree(folder, ignore_errors=True)
-        except (ValueError, PermissionError, OSError):
-            continue
-
-
-def run_runner(job: dict, wall_limit: float, on_item: Callable[[str, dict], None]) -> tuple[set, str]:
+def run_runner(job: dict, walls: list[float], on_item: Callable[[str, dict], None]) -> tuple[set, str, str]:
     """Start one runner, feed it the job, hand each finished item to ``on_item(key, outcome)``.
 
-    Returns the keys finished and why not all. The runner's temporary folder is the
+    ``walls[k]`` is the wall-clock budget of item ``k``, counted from the moment the item
+    before it finished (the runner grades items in order): an item that overruns costs
+    its own budget only. Returns the keys finished, why not all, and the key of the item
+    that overran its budget (``""`` if none). The runner's temporary folder is the
     grader's: removed here however the runner ended.
     """
-    tmp = tempfile.mkdtemp(prefix=f"{TMP_PREFIX}{os.getpid()}-")
-    job = dict(job, tmp=tmp)
+    job = dict(job)
+    tmp = tempfile.mkdtemp(prefix="runner-", dir=job.pop("home", None))
+    job["tmp"] = tmp
     env = dict(os.environ, PYTEST_DISABLE_PLUGIN_AUTOLOAD="1", PYTHONDONTWRITEBYTECODE="1")
+    env[HOME_ENV] = os.path.dirname(tmp)
     env.pop("PYTEST_ADDOPTS", None)
-    keys = {it["key"] for it in job["items"]}
+    order = [it["key"] for it in job["items"]]
+    keys = set(order)
+    overran = ""
     done: set = set()
     why = ""
     proc = subprocess.Popen([sys.executable, "-E", "-s", "-P", "-c", RUNNER_BOOT.format(root=PACKAGE_ROOT)],
@@ -93,8 +88,12 @@ def run_runner(job: dict, wall_limit: float, on_item: Callable[[str, dict], None
                 break
             left = deadline - time.monotonic()
             if left <= 0:
-                why = (f"grading took longer than {wall_limit:.0f} s" if ready
-                       else "the test runner did not start")
+                if ready:
+                    overran = next((k for k in order if k not in done), "")
+                    why = (f"timed out (wall-clock limit of {walls[len(done)]:.0f} s for one exercise "
+                           "of one submission)")
+                else:
+                    why = "the test runner did not start"
                 break
             if not sel.select(timeout=min(left, 0.5)):
                 continue
@@ -110,9 +109,9 @@ def run_runner(job: dict, wall_limit: float, on_item: Callable[[str, dict], None
                 line, buf = buf.split(b"\n", 1)
                 if not ready:
                     if line != b"ready":
-                        return done, "the test runner did not start"
+                        return done, "the test runner did not start", ""
                     ready = True  # non-dumpable now: the nonce may go out
-                    deadline = time.monotonic() + wall_limit
+                    deadline = time.monotonic() + walls[0]
                     proc.stdin.write(json.dumps(job).encode())
                     proc.stdin.close()
                     continue
@@ -125,6 +124,8 @@ def run_runner(job: dict, wall_limit: float, on_item: Callable[[str, dict], None
                 key = str(msg.get("key")) if isinstance(msg, dict) else ""
                 if key in keys and key not in done and isinstance(msg.get("outcome"), dict):
                     done.add(key)
+                    if len(done) < len(walls):
+                        deadline = time.monotonic() + walls[len(done)]
                     on_item(key, msg["outcome"])
     except (BrokenPipeError, OSError):
         why = why or "the test runner stopped"
@@ -134,7 +135,7 @@ def run_runner(job: dict, wall_limit: float, on_item: Callable[[str, dict], None
         shutil.rmtree(tmp, ignore_errors=True)
     if len(done) < len(keys) and not why:
         why = f"the test runner stopped (exit code {proc.returncode})"
-    return done, why
+    return done, why, overran
 
 
 def _killpg(proc: subprocess.Popen) -> None:

@@ -10,6 +10,13 @@ Three modes, tried in this order:
     the same built from Python (:mod:`mslab.grading.jail`, ``unshare`` + ``pivot_root``).
 ``rlimits``
     no namespaces: resource limits only, in the grader's file system (a warning says so).
+    As root (a platform's container, where Docker's seccomp profile blocks user
+    namespaces) each sandbox runs as a fresh throwaway uid and gid (no groups, no
+    capabilities, no new privileges, at most 64 processes of that uid, all killed when
+    the sandbox ends) on a root-owned copy of what it may read (:func:`rlimits_as_uid`),
+    while the grader closes the instructor's tree and the submissions to other users
+    (mode 0700 while grading). Anything else on the machine that other users may read,
+    the student may read too.
 
 In both namespace modes the student's process sees a read-only view of the interpreter,
 the standard library and numpy only (no ``mslab``, no site-packages, no source tree, no
@@ -24,9 +31,11 @@ import json
 import os
 import secrets
 import shutil
+import signal
 import subprocess
 import sys
 import sysconfig
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -190,6 +199,108 @@ def jail_command(p: Plan, source_fd: int, uid: int | None, argv: list[str] | Non
 def rlimit_command(module_file: Path) -> list[str]:
     """Return the old sandbox: the grader's interpreter on the student's file, limits only."""
     return [sys.executable, "-E", "-s", str(HERE / "sandbox.py"), str(module_file)]
+
+
+#: environment variable naming the grading's own folder (set for the runners by the grader)
+HOME_ENV = "MSLAB_GRADE_HOME"
+_STAGE: Path | None = None
+
+
+def _stage() -> Path:
+    """Return the root-owned folder of what a sandbox run as a throwaway uid may read (one per runner).
+
+    Mode 0711 (others may pass, not list): ``grader/`` holds the sandbox's own files
+    (mode 0444) and links to numpy; each sandbox gets a folder ``work-UID`` of its own.
+    """
+    global _STAGE
+    if _STAGE is None:
+        import numpy
+
+        stage = Path(tempfile.mkdtemp(prefix="stage-", dir=os.environ.get(HOME_ENV) or None))
+        os.chmod(stage, 0o711)
+        grader = stage / "grader"
+        grader.mkdir(mode=0o755)
+        for name in SANDBOX_FILES:
+            shutil.copyfile(HERE / name, grader / name)
+            os.chmod(grader / name, 0o444)
+        numpy_dir = os.path.dirname(os.path.realpath(numpy.__file__))
+        os.symlink(numpy_dir, grader / "numpy")
+        if os.path.isdir(numpy_dir + ".libs"):
+            os.symlink(numpy_dir + ".libs", grader / "numpy.libs")
+        _STAGE = stage
+    return _STAGE
+
+
+def rlimits_as_uid(module_file: Path, uid: int) -> tuple[list[str], Path]:
+    """Return the command running a sandbox as ``uid`` (rlimits as root), and its own folder.
+
+    The student's file is a root-owned read-only copy in ``work-UID`` (mode 0700, owned by
+    ``uid``: its scratch space); the interpreter runs with ``-S`` (no site-packages, no
+    mslab) and imports the sandbox's files and numpy from the stage.
+    """
+    work = _stage() / f"work-{uid}"
+    work.mkdir(mode=0o700)
+    os.chown(work, uid, uid)
+    target = work / module_file.name
+    shutil.copyfile(module_file, target)
+    os.chmod(target, 0o444)
+    python = os.path.realpath(sys.executable)
+    return [python, "-E", "-s", "-S", str(_stage() / "grader" / "sandbox.py"), str(target)], work
+
+
+def unreachable_for_others() -> str:
+    """Name what a throwaway uid could not reach (interpreter, standard library, numpy), or ``""``."""
+    import numpy
+
+    exe, folders = _python_files()
+    for path in [exe, *folders, os.path.dirname(os.path.realpath(numpy.__file__))]:
+        parts = Path(path).parts
+        for k in range(2, len(parts) + 1):
+            here = os.path.join(*parts[:k])
+            if os.path.isdir(here) and not os.stat(here).st_mode & 0o001:
+                return f"{path} (the folder {here} is closed to other users)"
+    return ""
+
+
+def user_process_cap(extra: int) -> int:
+    """Return an ``RLIMIT_NPROC`` that lets this user start ``extra`` more processes than it has now.
+
+    Without a cgroup and as a user (not root) no limit counts one sandbox's processes only:
+    ``RLIMIT_NPROC`` counts all processes of the user. Set to its count at the sandbox's
+    start plus ``extra``, it stops a fork bomb within ``extra`` processes; sandboxes side by
+    side share that headroom (one's bomb can make a classmate's fork fail until the bomb's
+    sandbox is killed at its limit), and the grader's own processes count too.
+    """
+    uid, count = os.getuid(), 0
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                if os.stat(f"/proc/{entry}").st_uid == uid:
+                    count += 1
+            except OSError:
+                continue
+    return count + extra
+
+
+def become(uid: int) -> None:
+    """Drop to ``uid`` for good (in the child, between fork and exec): no groups, no capabilities."""
+    os.setgroups([])
+    os.setgid(uid)
+    os.setuid(uid)
+
+
+def release_uid(uid: int) -> None:
+    """Kill every process of the throwaway ``uid`` (from a process of that uid) and remove its folder."""
+    pid = os.fork()
+    if pid == 0:
+        try:
+            become(uid)
+            os.kill(-1, signal.SIGKILL)  # every process this uid may signal: its own, except this one
+        finally:
+            os._exit(0)
+    os.waitpid(pid, 0)
+    if _STAGE is not None:
+        shutil.rmtree(_STAGE / f"work-{uid}", ignore_errors=True)
 
 
 def _probe(mode: str) -> bool:

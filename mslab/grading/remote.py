@@ -99,11 +99,15 @@ def set_not_dumpable() -> None:
         pass
 
 
-def _limits(memory_mb: int, cpu_s: int, file_mb: int, mode: str = "rlimits", box: Box | None = None):
+def _limits(memory_mb: int, cpu_s: int, file_mb: int, mode: str = "rlimits", box: Box | None = None,
+            uid: int | None = None):
     def apply():  # runs in the child between fork and exec
         if box is not None:
             box.enter()  # before anything of the student's runs: every process it starts stays in
         if mode == "rlimits":
+            if uid is not None:  # root: a throwaway uid, whose processes are the sandbox's only
+                resource.setrlimit(resource.RLIMIT_NPROC, (MAX_PROCESSES, MAX_PROCESSES))
+                isolation.become(uid)
             drop_privileges()
         else:  # bwrap / the jail need their privileges to build the namespaces; they drop them
             try:
@@ -112,6 +116,9 @@ def _limits(memory_mb: int, cpu_s: int, file_mb: int, mode: str = "rlimits", box
                 pass
             if os.geteuid() == 0:  # counts the fresh uid's processes only
                 resource.setrlimit(resource.RLIMIT_NPROC, (MAX_PROCESSES, MAX_PROCESSES))
+        if os.geteuid() != 0 and (box is None or not box.config):  # no cgroup: cap the user's count
+            cap = isolation.user_process_cap(MAX_PROCESSES)
+            resource.setrlimit(resource.RLIMIT_NPROC, (cap, cap))
         mem = memory_mb * 1024 * 1024
         resource.setrlimit(resource.RLIMIT_AS, (mem, mem))
         resource.setrlimit(resource.RLIMIT_CPU, (cpu_s, cpu_s + 1))
@@ -179,6 +186,7 @@ class Sandbox:
         self.box: Box | None = None
         self.broken: StudentError | None = None  # import failed: every later call fails the same way
         self._buf = b""
+        self.uid: int | None = None  # rlimits as root: the sandbox's throwaway uid
 
     def _env(self) -> dict:
         keep = ("PATH", "LANG", "LC_ALL", "SYSTEMROOT")
@@ -190,9 +198,16 @@ class Sandbox:
             env.update(HOME="/work", TMPDIR="/tmp", PATH="/usr/bin:/bin")
         return env
 
+    def _rlimits_command(self) -> tuple[list[str], tuple[int, ...], Path | None]:
+        self.uid = isolation.new_uid()
+        if self.uid is None:
+            return isolation.rlimit_command(self.module_file), (), self.workdir
+        argv, home = isolation.rlimits_as_uid(self.module_file, self.uid)
+        return argv, (), home
+
     def _command(self) -> tuple[list[str], tuple[int, ...], Path | None]:
         if self.mode == "rlimits":
-            return isolation.rlimit_command(self.module_file), (), self.workdir
+            return self._rlimits_command()
         os.lseek(self._source_fd, 0, os.SEEK_SET)
         build = isolation.bwrap_command if self.mode == "bwrap" else isolation.jail_command
         argv = build(_plan(), self._source_fd, isolation.new_uid(), module=self.module_file.name)
@@ -210,10 +225,11 @@ class Sandbox:
         self.kill()
         argv, fds, cwd = self._command()
         self.box = Box(self.cgroups, self.memory_mb)
+        env = self._env() if self.uid is None else dict(self._env(), HOME=str(cwd), TMPDIR=str(cwd))
         self.proc = subprocess.Popen(
             argv, cwd=cwd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-            env=self._env(), start_new_session=True, pass_fds=fds,
-            preexec_fn=_limits(self.memory_mb, self.cpu_s, self.file_mb, self.mode, self.box))
+            env=env, start_new_session=True, pass_fds=fds,
+            preexec_fn=_limits(self.memory_mb, self.cpu_s, self.file_mb, self.mode, self.box, self.uid))
         self.box.started(self.proc.pid)
         self._buf = b""
         try:
@@ -303,6 +319,9 @@ class Sandbox:
             except subprocess.TimeoutExpired:
                 pass
             self.proc = None
+        if self.uid is not None:
+            isolation.release_uid(self.uid)
+            self.uid = None
         if self.box is not None:
             self.box.close()
             self.box = None
