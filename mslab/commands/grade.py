@@ -13,7 +13,8 @@ from mslab.commands.common import CommandError, add_common_options, emit_json, s
 from mslab.grading.autograde import SubmissionResult, grade
 from mslab.grading.isolation import DESCRIPTION
 from mslab.grading.layout import default_source
-from mslab.grading.report import Journal, format_report, gradebook_rows, printable, write_csv
+from mslab.grading.platforms import FORMATS, check_format, write_grades
+from mslab.grading.report import Journal, format_report, printable
 
 if TYPE_CHECKING:
     import argparse
@@ -39,7 +40,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--source", default=None,
                    help="the instructor's exercises with all tests (required unless the current "
                         "folder holds them as exercises/)")
-    p.add_argument("--csv", metavar="FILE", default=None, help="write a gradebook (one row per student)")
+    p.add_argument("--csv", "--output", dest="csv", metavar="FILE", default=None,
+                   help="write the grades (--format: a gradebook CSV by default)")
+    p.add_argument("--format", default="csv", choices=FORMATS,
+                   help="what --output holds: mslab's gradebook (csv), Gradescope's or PrairieLearn's "
+                        "results.json (one submission), a Canvas gradebook import (canvas)")
+    p.add_argument("--assignment", default=None, metavar="TITLE",
+                   help="--format canvas: the assignment column, 'Title (canvas id)' or a new title")
     p.add_argument("--journal", metavar="FILE", default=None,
                    help="record each result as it arrives (default with --csv: FILE.journal)")
     p.add_argument("--resume", action="store_true",
@@ -95,6 +102,10 @@ def _check_options(args: argparse.Namespace) -> None:
             raise CommandError(f"must be a finite number of at least {least:g}, not {value!r}", key=key)
     if args.jobs is not None and args.jobs < 1:
         raise CommandError("must be at least 1", key="--jobs")
+    try:
+        check_format(args.format, args.csv, len(args.submissions), args.assignment)
+    except ValueError as err:
+        raise CommandError(str(err)) from None
     for key, path in (("--csv", args.csv), ("--journal", args.journal)):
         if path is None:
             continue
@@ -138,7 +149,10 @@ def run(args: argparse.Namespace) -> int:
     try:
         results = _grade(args, source, book)
         if args.csv:
-            write_csv(args.csv, gradebook_rows(results))
+            try:
+                write_grades(args.csv, args.format, results, assignment=args.assignment)
+            except ValueError as err:
+                raise CommandError(str(err), where=os.fspath(args.csv)) from None
         if book is not None:
             book.close(finished=True)  # the class is graded: nothing to resume
     finally:

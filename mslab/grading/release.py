@@ -27,19 +27,28 @@ its equations), one Python file with the functions to write (replace every
 
 The lessons are the notebooks in the `lessons/` folder of the course repository. Open them
 with `make lab` in the repository (it installs everything into `.venv` and starts JupyterLab),
-or after `pip install "mslab[lessons]"` with `jupyter lab` in that folder; in each lesson,
+or after `python -m pip install "mslab[students]"` (below) with `jupyter lab` in that folder; in each lesson,
 Kernel > Restart Kernel and Run All Cells brings its sliders to life.
 
 ## Run the public tests on your work
 
-From this folder, with `mslab` installed (the package your course hands out, installed with
-`pip install`; the public tests compare your results with the library), in a terminal or in
-JupyterLab's (File > New > Terminal; `make lab` makes its `pytest` the one of `.venv`):
+The public tests need `mslab` (the package your course hands out; the tests compare your
+results with the library) and `pytest`, both in the same Python. Install them once:
 
 ```
-pytest 03_heun_midpoint          # one exercise
-pytest .                         # all of them
+python -m pip install "mslab[students]"
 ```
+
+Then, from this folder, in a terminal or in JupyterLab's (File > New > Terminal):
+
+```
+python -m pytest 03_heun_midpoint          # one exercise
+python -m pytest .                         # all of them
+```
+
+Use the same `python` for both (`python3` or `py` where `python` is another one; in the
+terminal of `make lab` it is the one of `.venv`). A bare `pytest` may belong to another
+Python, which then stops with "No module named 'mslab'".
 
 ## How you are graded
 
