@@ -156,11 +156,13 @@ def _load_quickly(fast: Any) -> None:
     (numba's compiler does the full set-up itself). Left as numba made it where numba lacks
     the internals this relies on.
     """
+    cache = getattr(fast, "_cache", None)  # None: not a caching numba dispatcher
+    needed = ("_load_overload", "_guard_against_spurious_io_errors")
+    if cache is None or not all(hasattr(cache, n) for n in needed):
+        return
     from numba.core import caching
 
-    cache = getattr(fast, "_cache", None)
-    needed = ("_load_overload", "_guard_against_spurious_io_errors")
-    if not isinstance(cache, caching.FunctionCache) or not all(hasattr(cache, n) for n in needed):
+    if not isinstance(cache, caching.FunctionCache):
         return
     cache.__class__ = _quick_cache_class()
 
