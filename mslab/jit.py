@@ -17,6 +17,7 @@ combination of kernels, then compiles here function by function). So all of them
 
 from __future__ import annotations
 
+import functools
 import inspect
 import os
 import sys
@@ -176,6 +177,7 @@ def compiled(function: Callable, what: str | None = None, *, helpers: bool = Tru
             # without compiling it, and the pool would not be there (a crash, not an error)
             numba().get_num_threads()
         fast = numba().njit(cache=True, **flags)(target)
+        _load_quickly(fast)
         fast.mslab_what = what or function.__name__
         original = fast.compile
 
@@ -186,6 +188,43 @@ def compiled(function: Callable, what: str | None = None, *, helpers: bool = Tru
         fast.compile = compile
         _COMPILED[key] = fast
     return fast
+
+
+def _load_quickly(fast: Any) -> None:
+    """Let the dispatcher ``fast`` load its cached code without numba's full target set-up.
+
+    Before it loads a cached function numba imports and registers every implementation it
+    could need to *compile* (``BaseContext.refresh``: its numpy, linear algebra and typed
+    containers, with scipy's linear algebra; 0.4-0.8 s of a fresh process, measured in
+    benchmarks/RESULTS.md, "A compiled loop that loads at once"). Machine code from the cache
+    needs none of it, only numba's runtime (``rtsys``); a cache miss compiles as before
+    (numba's compiler does the full set-up itself). Left as numba made it where numba lacks
+    the internals this relies on.
+    """
+    cache = getattr(fast, "_cache", None)  # None: not a caching numba dispatcher
+    needed = ("_load_overload", "_guard_against_spurious_io_errors")
+    if cache is None or not all(hasattr(cache, n) for n in needed):
+        return
+    from numba.core import caching
+
+    if not isinstance(cache, caching.FunctionCache):
+        return
+    cache.__class__ = _quick_cache_class()
+
+
+@functools.cache
+def _quick_cache_class() -> type:
+    """Return numba's ``FunctionCache`` with a lean ``load_overload`` (made once per process)."""
+    from numba.core import caching
+    from numba.core.runtime import rtsys
+
+    class QuickCache(caching.FunctionCache):
+        def load_overload(self, sig: Any, target_context: Any) -> Any:
+            rtsys.initialize(target_context)  # the runtime (allocation) the loaded code calls
+            with self._guard_against_spurious_io_errors():
+                return self._load_overload(sig, target_context)
+
+    return QuickCache
 
 
 def thread_count(requested: int | None = None) -> int | None:

@@ -39,10 +39,12 @@ if TYPE_CHECKING:
 BACKENDS = ("auto", "numba", "numpy")
 
 #: Seconds a process pays before the compiled loops of a scene run (measured in
-#: benchmarks/RESULTS.md): loading them from numba's cache (with numba's import), or
-#: compiling them (a combination of kernels never run on this machine). ``auto`` takes
-#: numpy when the numpy loop is predicted to finish sooner.
-LOAD_SECONDS = 0.75
+#: benchmarks/RESULTS.md, "A compiled loop that loads at once"): loading them from numba's
+#: cache (0.28-0.33 s, medians by scene: numba's import ~0.2 s and the loop's load ~0.1 s,
+#: over what a numpy run imports anyway; 0.52-0.57 s before issue 38), or compiling them (a
+#: combination of kernels never run on this machine). ``auto`` takes numpy when the numpy
+#: loop is predicted to finish sooner.
+LOAD_SECONDS = 0.3
 COMPILE_SECONDS = 6.5
 
 
@@ -75,9 +77,13 @@ def unsupported(system: System, integrator: Integrator) -> str | None:
     return None
 
 
-#: Predicted seconds of one numpy force evaluation: a fixed cost per effect plus a cost per
-#: item (particle, spring, anchor) of the effects' kernels, fitted on this machine's
-#: chains and cloths (5 to 59,002 springs: 19.5 us to 3.4 ms).
+#: Predicted seconds of one numpy force evaluation: a fixed cost per evaluation (the
+#: system's and the method's own Python around the forces: 40-120 us more per evaluation
+#: than the two other terms alone, measured on the chain, pendulum and hanging rope, issue
+#: 38; the lower end taken), a fixed cost per effect and a cost per item (particle, spring,
+#: anchor) of the effects' kernels, fitted on this machine's chains and cloths (5 to 59,002
+#: springs: 19.5 us to 3.4 ms).
+NUMPY_SECONDS_PER_EVAL = 27e-6
 NUMPY_SECONDS_PER_EFFECT = 8e-6
 NUMPY_SECONDS_PER_ITEM = 55e-9
 
@@ -93,7 +99,8 @@ def worth_compiling(system: System, integrator: Integrator, n_steps: int,
 
     True when the numpy loop's predicted time exceeds :data:`LOAD_SECONDS`, the cost of
     loading the compiled loops from numba's cache. The prediction is a fixed cost model
-    (:data:`NUMPY_SECONDS_PER_EFFECT`, :data:`NUMPY_SECONDS_PER_ITEM`, times the force
+    (:data:`NUMPY_SECONDS_PER_EVAL`, :data:`NUMPY_SECONDS_PER_EFFECT`,
+    :data:`NUMPY_SECONDS_PER_ITEM`, times the force
     evaluations of the run, times 1.5 for the integrator's own array work), never a
     measurement and never this process's history: the same run always takes the same
     backend, so its results (equal on both backends only to round-off) are reproducible.
@@ -103,8 +110,8 @@ def worth_compiling(system: System, integrator: Integrator, n_steps: int,
 
 def numpy_seconds(system: System, integrator: Integrator, n_steps: int) -> float:
     """Predict the seconds of ``n_steps`` numpy steps: the fixed cost model of :func:`worth_compiling`."""
-    per_eval = sum(NUMPY_SECONDS_PER_EFFECT + NUMPY_SECONDS_PER_ITEM * _items(e, system.n_particles)
-                   for e in system.effects)
+    per_eval = NUMPY_SECONDS_PER_EVAL + sum(NUMPY_SECONDS_PER_EFFECT + NUMPY_SECONDS_PER_ITEM
+                                            * _items(e, system.n_particles) for e in system.effects)
     return n_steps * max(1, integrator.n_stages) * per_eval * 1.5
 
 

@@ -1,0 +1,61 @@
+"""The compiled loop loads from numba's cache without numba's compiler set-up (issue 38, item 0).
+
+Loading cached machine code needs numba's runtime only; numba's full target set-up (every
+implementation it could compile, numpy's linear algebra with scipy's) cost 0.4-0.8 s of
+each fresh process. Checked in fresh processes, by what they import, not by a clock.
+"""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import mslab
+from mslab import fast
+
+ROOT = Path(__file__).resolve().parent.parent
+
+FRESH = """
+import json, sys
+import numpy as np
+import mslab
+from mslab import fast
+scene = mslab.load_scene("chain")
+method = mslab.get_method("rk4")
+runner = fast.stepper(scene.system, method, "numba")
+loop = runner.model.module.run_explicit_rk
+traj = mslab.simulate(scene, method, t_end=0.05, backend="numba")
+print(json.dumps({"linalg": "numba.np.linalg" in sys.modules, "hits": sum(loop.stats.cache_hits.values()),
+                  "misses": sum(loop.stats.cache_misses.values()), "x": traj.x[-1].tolist(),
+                  "auto": [fast.worth_compiling(scene.system, method, n) for n in (10, 10**3, 10**6)]}))
+"""
+
+
+def _fresh() -> dict:
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env.pop("MSLAB_BACKEND", None)
+    out = subprocess.run([sys.executable, "-c", FRESH], env=env, capture_output=True, text=True, check=True,
+                         timeout=600)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_a_cached_loop_loads_without_the_compiler_set_up_and_steps_the_same():
+    scene = mslab.load_scene("chain")
+    method = mslab.get_method("rk4")
+    fast.stepper(scene.system, method, "numba")  # compiled and cached here if it was not yet
+    here = mslab.simulate(scene, method, t_end=0.05, backend="numba")
+    doc = _fresh()
+    assert (doc["hits"], doc["misses"]) == (1, 0)  # loaded from the cache, not compiled
+    assert not doc["linalg"]  # numba's numpy/linear-algebra implementations were not set up
+    assert doc["x"] == here.x[-1].tolist()  # bitwise the steps of this (compiling) process
+
+
+def test_auto_takes_the_same_backend_in_a_fresh_process_and_after_other_runs():
+    scene = mslab.load_scene("chain")
+    method = mslab.get_method("rk4")
+    mslab.simulate(scene, "leapfrog", t_end=0.05, backend="numba")
+    mslab.simulate(scene, method, t_end=0.05, backend="numpy")
+    after = [fast.worth_compiling(scene.system, method, n) for n in (10, 10**3, 10**6)]
+    assert _fresh()["auto"] == after
+    assert after[0] is False and after[2] is True
