@@ -12,15 +12,24 @@ it saves when they are read (:mod:`mslab.ledger`) and a ledger check every
 :attr:`mslab.stopping.LedgerCheck.every` steps (:mod:`mslab.stopping`).
 
 **Backend** (decided once per session, deterministically, never by timing): ``"numpy"``,
-``"numba"``, or ``"auto"`` (default), decided at the first ``advance`` by
+``"numba"``, or ``"auto"`` (default), decided when the session starts by
 :func:`mslab.fast.worth_compiling` from the session's expected steps: its declared length
-(``t_end``) when it has one, else the larger of the first advance and :data:`HORIZON`
-steps — so stepping a 64 x 64 cloth one frame at a time gets the compiled loop, a
-five-particle chain the numpy one.
+(``t_end``) when it has one (so a session and ``simulate()`` of the same length take the
+same backend), else :data:`HORIZON` steps — so stepping a 64 x 64 cloth one frame at a time
+gets the compiled loop, a five-particle chain the numpy one. Nothing read or advanced later
+changes it.
+
+**Owned data**: the session steps a private deep copy of the scene (system, effects, initial
+state) and of the method, taken when it starts; :attr:`Simulation.state` and
+:attr:`Simulation.trajectory` are copies. Editing the scene, the method object or anything
+read from the session changes nothing in the run, on either backend. ``advance`` from a
+second thread while one runs is refused (RuntimeError).
 """
 
 from __future__ import annotations
 
+import copy
+import threading
 import time
 from dataclasses import replace
 from typing import TYPE_CHECKING
@@ -28,6 +37,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from mslab import fast, jit, stopping
+from mslab.checks import flag, real, whole
 from mslab.errors import ConvergenceError, InstabilityError, StepFailure
 from mslab.integrators.base import Integrator, get_method
 from mslab.ledger import NEVER, Samples, initial_energy_scale
@@ -86,19 +96,31 @@ class Simulation:
                  t_end: float | None = None, save_every: int | None = None, blowup: float = 1e6,
                  stable_dt: float | None = None, backend: str | None = None, check_stability: bool = True,
                  energy_blowup: float = 1e4, threads: int | None = None, _stacklevel: int = 2):
+        from mslab.scene import Scene
+
+        if not isinstance(scene, Scene):
+            raise TypeError(f"scene must be an mslab Scene, got {type(scene).__name__}")
         s = scene.settings
+        if backend is not None and not isinstance(backend, str):
+            raise TypeError(f"backend must be a string or None, got {type(backend).__name__}")
         self.backend = fast.check_backend(backend)
-        self.threads = jit.thread_count(threads)
-        self.scene, self.system = scene, scene.system
-        self.integrator = get_method(method if method is not None else s.method)
+        self.threads = jit.thread_count(None if threads is None else whole("threads", threads, 1))
+        self.scene = scene  # the user's: the run steps its own copy (editing the scene changes nothing)
+        own = copy.deepcopy(scene)
+        self._scene, self.system = own, own.system
+        if method is not None and not isinstance(method, (str, Integrator)):
+            raise TypeError(f"method must be a method name or an Integrator, got {type(method).__name__}")
+        self.integrator = copy.deepcopy(get_method(method if method is not None else s.method))
         self.dt = check_dt(s.dt if dt is None else dt)
-        self.end = None if t_end is None else step_count(float(t_end), self.dt)
+        self.end = None if t_end is None else step_count(t_end, self.dt)
         if save_every is None:  # open-ended: only the first state (hours of frames fill no memory)
             save_every = s.save_every if self.end is not None else NEVER
-        self.save_every = int(save_every)
-        if self.save_every < 1:
-            raise ValueError(f"save_every must be >= 1, got {self.save_every}")
-        state0 = scene.state0
+        self.save_every = whole("save_every", save_every, 1)
+        blowup = real("blowup", blowup, positive=True, allow_inf=True)
+        energy_blowup = real("energy_blowup", energy_blowup, positive=True, allow_inf=True)
+        stable_dt = None if stable_dt is None else real("stable_dt", stable_dt, positive=True)
+        check_stability = flag("check_stability", check_stability)
+        state0 = own.state0
         for what, values in (("positions", state0.x), ("velocities", state0.v)):
             if not np.all(np.isfinite(values)):  # before any work: a run from NaN "blows up" at step 1
                 raise ValueError(f"initial state: {what} are not finite (NaN or inf) at particles "
@@ -109,12 +131,14 @@ class Simulation:
             self.stable_dt = stopping.check_stability(scene, self.integrator, self.dt, stable_dt,
                                                       stacklevel=_stacklevel + 1)
         self.stats = Stats(method=self.integrator.name, dt=self.dt)
-        self._samples = Samples(self.system, scene.state0.x.shape, self.save_every, self.end)
-        self._check = LedgerCheck(initial_energy_scale(scene), energy_blowup, self.integrator.n_stages,
+        self._samples = Samples(self.system, state0.x.shape, self.save_every, self.end)
+        self._check = LedgerCheck(initial_energy_scale(own), energy_blowup, self.integrator.n_stages,
                                   self.end)
-        self._limit = position_limit(scene, blowup)
+        self._limit = position_limit(own, blowup)
         self._loop: NumpyLoop | CompiledLoop | None = None
         self._failed: Exception | None = None
+        self._running = threading.Lock()
+        self._begin()  # the backend and the method's start: fixed when the session starts
 
     # -- what the session is at ---------------------------------------------------------------
     @property
@@ -129,14 +153,14 @@ class Simulation:
 
     @property
     def state(self) -> State:
-        """The current state (a copy where the compiled loop holds it)."""
-        self._begin(0)
-        return self._loop.state()
+        """A copy of the current state (positions, velocities, the method's memory) on every backend."""
+        state = self._loop.state()
+        return replace(state, x=state.x.copy(), v=state.v.copy(),
+                       memory=tuple(np.array(m, copy=True) for m in state.memory))
 
     @property
     def compiled(self) -> bool:
-        """Whether the compiled loop steps this session (decided at the first advance)."""
-        self._begin(0)
+        """Whether the compiled loop steps this session (decided when it starts)."""
         return isinstance(self._loop, CompiledLoop) or self._stepped is not self.system
 
     @property
@@ -144,7 +168,6 @@ class Simulation:
         """The saved samples so far, and the current state when it is not one of them."""
         if self._failed is not None:
             return self._failed.trajectory
-        self._begin(0)
         return self._trajectory(self._samples.k, True, current=True)
 
     # -- stepping ------------------------------------------------------------------------------
@@ -157,6 +180,15 @@ class Simulation:
         then stays stopped), SimulationInterrupted on Ctrl-C. ``progress`` as in
         :func:`mslab.simulate`.
         """
+        if not self._running.acquire(blocking=False):
+            raise RuntimeError("advance is already running on this session in another thread; a session "
+                               "steps one call at a time (wait for it, or use one session per thread)")
+        try:
+            self._advance_locked(n, t, progress)
+        finally:
+            self._running.release()
+
+    def _advance_locked(self, n: int | None, t: float | None, progress: object) -> None:
         if self._failed is not None:
             raise ValueError(f"the session stopped at step {self.step}: {self._failed}")
         count = self._count(n, t)
@@ -175,27 +207,23 @@ class Simulation:
     def _count(self, n: int | None, t: float | None) -> int:
         if n is not None and t is not None:
             raise ValueError("advance takes a number of steps or a time t, not both")
-        if t is not None:
-            return step_count(float(t), self.dt)
+        if t is not None:  # t = 0 is 0 steps, as n = 0 is
+            return 0 if real("t", t, minimum=0.0) == 0.0 else step_count(t, self.dt)
         if n is None:
             if self.end is None:
                 raise ValueError("advance needs a number of steps or a time t (the session has no t_end)")
             return self.end - self.step
-        if isinstance(n, bool) or int(n) != n or n < 0:
-            raise ValueError(f"advance takes a whole number of steps >= 0, got {n!r}")
-        return int(n)
+        return whole("n", n, 0)
 
-    def _begin(self, first: int) -> None:
-        """Choose the loop (``auto``: from the expected steps) and start the method; once."""
-        if self._loop is not None:
-            return
-        expected = self.end if self.end is not None else max(first, HORIZON)
-        runner = fast.stepper(self.system, self.integrator, self.backend, expected, self.scene.state0)
+    def _begin(self) -> None:
+        """Choose the loop (``auto``: from the declared length, else :data:`HORIZON`) and start the method."""
+        expected = self.end if self.end is not None else HORIZON
+        runner = fast.stepper(self.system, self.integrator, self.backend, expected, self._scene.state0)
         self._stepped = self.system  # the implicit methods' compiled path steps their own
         if runner is not None and runner.view is not None:  # numpy code on a compiled view
             self._stepped, runner = runner.view, None
         before, start = self.system.counters.snapshot(), time.perf_counter()
-        state = self.integrator.start(self._stepped, self.scene.state0, self.dt)
+        state = self.integrator.start(self._stepped, self._scene.state0, self.dt)
         self._account(before, start)
         self._samples.add(state.x, state.v, state.dissipated, self._totals())
         self._check.start(float(self._samples.energy(1, copy=False).total[0]))
@@ -207,7 +235,6 @@ class Simulation:
     def _advance(self, count: int, progress: object) -> None:
         from mslab.progress import make_progress
 
-        self._begin(count)
         loop, samples, check = self._loop, self._samples, self._check
         target, first = loop.step + count, samples.k
         bar, own_bar = make_progress(progress, target - loop.step, self.integrator.name)
@@ -332,12 +359,12 @@ class Simulation:
                 (energy.kinetic, energy.potential, energy.dissipated, energy.external), point, strict=True)]
             return Trajectory(np.append(t, loop.step * self.dt), np.concatenate((samples.x[:k], x[None])),
                               np.concatenate((samples.v[:k], v[None])), Energy(*parts), stats, complete,
-                              self.scene.name)
+                              self._scene.name)
         if k == samples.steps.size:  # the whole declared run: hand the arrays over (memory budget: 1 x)
             return Trajectory(t, samples.x, samples.v, samples.energy(k, copy=False), stats, complete,
-                              self.scene.name)
+                              self._scene.name)
         return Trajectory(t, samples.x[:k].copy(), samples.v[:k].copy(), samples.energy(k, copy=True), stats,
-                          complete, self.scene.name)
+                          complete, self._scene.name)
 
 
 def _interpolate_marks(samples: Samples, k_done: int, done: int, step: int, begun: tuple,

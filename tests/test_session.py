@@ -127,7 +127,7 @@ def test_blowup_in_a_session_is_the_error_of_one_long_run():
 
 
 def test_auto_backend_is_decided_once_from_the_expected_work():
-    """Open-ended: the first advance or HORIZON steps, whichever is more; declared: the length."""
+    """Open-ended: HORIZON steps (fixed at the start); declared: the length."""
     from mslab.simulation import HORIZON
 
     method = mslab.get_method("symplectic_euler")
