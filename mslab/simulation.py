@@ -118,7 +118,7 @@ class Simulation:
         self.save_every = whole("save_every", save_every, 1)
         blowup = real("blowup", blowup, positive=True, allow_inf=True)
         energy_blowup = real("energy_blowup", energy_blowup, positive=True, allow_inf=True)
-        stable_dt = None if stable_dt is None else real("stable_dt", stable_dt, positive=True)
+        stable_dt = None if stable_dt is None else real("stable_dt", stable_dt, minimum=0.0)  # 0: none
         check_stability = flag("check_stability", check_stability)
         state0 = own.state0
         for what, values in (("positions", state0.x), ("velocities", state0.v)):
