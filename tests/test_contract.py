@@ -92,7 +92,8 @@ def test_a_second_concurrent_advance_is_refused_not_lost():
 
 
 @pytest.mark.parametrize(("kwargs", "error", "name"), [
-    ({"dt": True}, TypeError, "dt"), ({"dt": "0.01"}, TypeError, "dt"), ({"dt": float("nan")}, ValueError, "dt"),
+    ({"dt": True}, TypeError, "dt"), ({"dt": "0.01"}, TypeError, "dt"),
+    ({"dt": float("nan")}, ValueError, "dt"),
     ({"dt": -1.0}, ValueError, "dt"), ({"dt": float("inf")}, ValueError, "dt"),
     ({"save_every": 1.5}, TypeError, "save_every"), ({"save_every": "2"}, TypeError, "save_every"),
     ({"save_every": True}, TypeError, "save_every"), ({"save_every": 0}, ValueError, "save_every"),
@@ -109,7 +110,8 @@ def test_bad_arguments_raise_one_error_naming_them(kwargs, error, name):
 
 
 @pytest.mark.parametrize(("call", "error"), [
-    ({"n": float("inf")}, TypeError), ({"n": 2.0}, TypeError), ({"n": True}, TypeError), ({"n": "3"}, TypeError),
+    ({"n": float("inf")}, TypeError), ({"n": 2.0}, TypeError), ({"n": True}, TypeError),
+    ({"n": "3"}, TypeError),
     ({"n": -1}, ValueError), ({"t": float("inf")}, ValueError), ({"t": -0.1}, ValueError),
     ({"t": "0.1"}, TypeError), ({"t": float("nan")}, ValueError),
 ])
