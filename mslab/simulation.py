@@ -42,7 +42,7 @@ from mslab.errors import ConvergenceError, InstabilityError, StepFailure
 from mslab.integrators.base import Integrator, get_method
 from mslab.ledger import NEVER, Samples, initial_energy_scale
 from mslab.state import State
-from mslab.stepping import CompiledLoop, NumpyLoop
+from mslab.stepping import CompiledLoop, LedgerOver, NumpyLoop, interpolate_marks
 from mslab.steps import check_dt, step_count
 from mslab.stopping import LedgerCheck, hint, position_limit
 from mslab.trajectory import Energy, Stats, Trajectory
@@ -236,7 +236,7 @@ class Simulation:
         from mslab.progress import make_progress
 
         loop, samples, check = self._loop, self._samples, self._check
-        target, first = loop.step + count, samples.k
+        target, k_done = loop.step + count, samples.k
         bar, own_bar = make_progress(progress, target - loop.step, self.integrator.name)
         before, start = self.system.counters.snapshot(), time.perf_counter()
         base = self._totals()
@@ -253,7 +253,10 @@ class Simulation:
                 begun = mark() if isinstance(loop, CompiledLoop) else None
                 ok = loop.run(stop, samples, mark)
                 if begun is not None:
-                    _interpolate_marks(samples, k_done, done, loop.step, begun, mark())
+                    interpolate_marks(samples, k_done, done, loop.step, begun, mark())
+                # one order of events per step, whatever the chunks: a saved sample's ledger over
+                # the bound, then a position blow-up (at the step it happened), then the periodic check
+                self._raise_over(k_done, None if ok else loop.step)
                 if not ok:
                     raise FloatingPointError
                 if check.due(loop.step):
@@ -271,41 +274,61 @@ class Simulation:
             ledger = "K + U + D - W_ext" if self.system.driving else "K + U + D"
             raise self._stop(InstabilityError, f"blew up by step {loop.step}", f"the state stayed finite "
                              f"but the energy ledger {ledger} {grew}{hint(self.stable_dt)}") from None
+        except LedgerOver as over:
+            self._account(before, start, bar if own_bar else None)
+            raise self._ledger_stop(over.j) from None
         except StepFailure as err:
             self._account(before, start, bar if own_bar else None)
+            j = self._over(k_done, loop.step + 1)  # a sample over the bound before the failing step
+            if j is not None:
+                raise self._ledger_stop(j) from None
             raise self._stop(ConvergenceError, f"failed at step {loop.step + 1}", str(err),
                              step=loop.step + 1) from None
         except KeyboardInterrupt:
             self._account(before, start, bar if own_bar else None)
             raise SimulationInterrupted(self._trajectory(samples.k, False, current=False)) from None
         self._account(before, start, bar if own_bar else None)
-        self._ledger_over(first)
 
     def _totals(self) -> tuple:
         """Return the session's stepping time and counters so far (a sample's mark)."""
         return self.stats.wall_time, {k: getattr(self.stats, k) for k in self.system.counters.snapshot()}
 
-    def _ledger_over(self, first: int) -> None:
-        """Stop at the first sample saved by this call whose ledger gained over ``energy_blowup``.
+    def _over(self, first: int, before_step: int | None = None) -> int | None:
+        """Return the first sample from ``first`` (before step ``before_step``) whose ledger gained too much.
 
-        Checked on the saved samples when a call ends (a position blow-up later in the same
-        call comes first), the run reported as stopped at that sample.
+        Checked on the samples each stretch of steps saved, before that stretch's position
+        blow-up (which stops at its own step, not at a sample of it) and its periodic check.
         """
         samples, check = self._samples, self._check
-        if not check.on:
-            return
+        if not check.on or samples.k <= first:
+            return None
+        k = samples.k
+        if before_step is not None:
+            k = int(np.searchsorted(samples.steps[:k], before_step, side="left"))
+            if k <= first:
+                return None
         energy = samples.energy(samples.k, copy=False)
         scale = check.scale if check.scale > 0 else energy.energy_scale()  # at rest: the run's own
-        j = check.over(energy.total, first, scale)
-        if j is None:
-            return
+        return check.over(energy.total[:k], first, scale)
+
+    def _raise_over(self, first: int, before_step: int | None) -> None:
+        j = self._over(first, before_step)
+        if j is not None:
+            raise LedgerOver(j)
+
+    def _ledger_stop(self, j: int) -> Exception:
+        """Return the error that stops the run at sample ``j``, whose ledger gained over ``energy_blowup``."""
+        samples = self._samples
+        energy = samples.energy(samples.k, copy=False)
+        check = self._check
+        scale = check.scale if check.scale > 0 else energy.energy_scale()
         step = int(samples.steps[j])
         self.stats.wall_time, counted = samples.marks[j]
         for key, value in counted.items():
             setattr(self.stats, key, value)
         growth = (energy.total[j] - energy.total[0]) / scale
         ledger = "K + U + D - W_ext" if self.system.driving else "K + U + D"
-        raise self._stop(InstabilityError, f"blew up by step {step}", f"the state stayed finite but the "
+        return self._stop(InstabilityError, f"blew up by step {step}", f"the state stayed finite but the "
                          f"energy ledger {ledger} grew by {growth:.3g} x the scene's energy scale"
                          f"{hint(self.stable_dt)}", step=step, keep=j)
 
@@ -365,17 +388,6 @@ class Simulation:
                               self._scene.name)
         return Trajectory(t, samples.x[:k].copy(), samples.v[:k].copy(), samples.energy(k, copy=True), stats,
                           complete, self._scene.name)
-
-
-def _interpolate_marks(samples: Samples, k_done: int, done: int, step: int, begun: tuple,
-                       ended: tuple) -> None:
-    """Add the marks of the samples a compiled call saved (every compiled step costs the same)."""
-    (t0, c0), (t1, _) = begun, ended
-    per_step = (ended[1]["n_force"] - c0["n_force"]) // max(step - done, 1)
-    for i in range(k_done, samples.k):
-        part = (samples.steps[i] - done) / max(step - done, 1)
-        counted = {**c0, "n_force": c0["n_force"] + per_step * int(samples.steps[i] - done)}
-        samples.marks.append((t0 + part * (t1 - t0), counted))
 
 
 class _LedgerGrew(Exception):
