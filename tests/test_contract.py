@@ -151,3 +151,33 @@ def test_reprs_are_one_line_summaries():
     tr = mslab.simulate(scene(), "rk4", dt=DT, t_end=STEPS * DT)
     text = repr(tr)
     assert "\n" not in text and len(text) < 300 and f"{STEPS + 1} samples" in text
+
+
+def test_a_frame_loop_through_simulate_warns_once_naming_the_factor():
+    """Each frame a new scene from the last state (one system): the 10th alike call warns, once."""
+    import dataclasses
+    import warnings
+
+    from mslab.simulate import SHORT_CALLS, FrameLoopWarning
+
+    sc = generators.chain(5, dim=2)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        for _ in range(2 * SHORT_CALLS):
+            tr = mslab.simulate(sc, "rk4", dt=1e-3, t_end=0.016)
+            sc = dataclasses.replace(sc, state0=mslab.State(tr.x[-1], tr.v[-1]))
+    frames = [w for w in caught if issubclass(w.category, FrameLoopWarning)]
+    assert len(frames) == 1
+    assert "Simulation" in str(frames[0].message) and "x its stepping time" in str(frames[0].message)
+
+
+def test_a_sweep_over_dt_does_not_warn():
+    import warnings
+
+    from mslab.simulate import FrameLoopWarning
+
+    sc = generators.chain(5, dim=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", FrameLoopWarning)
+        for k in range(1, 15):
+            mslab.simulate(sc, "rk4", dt=1e-3 / k, t_end=0.016)
