@@ -39,9 +39,10 @@ def parse_size(text: str) -> int:
     """
     match = re.fullmatch(r"\s*([0-9]*\.?[0-9]+(?:[eE][+-]?[0-9]+)?)\s*([A-Za-z]*)\s*", str(text))
     unit = match.group(2).lower() if match else None
-    if match is None or unit not in _UNITS or float(match.group(1)) <= 0:
+    size = float(match.group(1)) * _UNITS[unit] if match and unit in _UNITS else float("nan")
+    if not (0 < size < float("inf")):  # 1e999 is inf, not a size
         raise ValueError(f"not a memory size: '{text}'; write e.g. 2G, 512M, 1.5GiB or a number of bytes")
-    return int(float(match.group(1)) * _UNITS[unit])
+    return int(size)
 
 
 def size_text(n_bytes: float) -> str:

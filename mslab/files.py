@@ -95,3 +95,21 @@ def output_problem(folder: str | Path, need_bytes: int = 0) -> str | None:
     if free < need_bytes:
         return f"only {_mb(free)} free on the file system of {base}; the outputs need about {_mb(need_bytes)}"
     return None
+
+
+#: longest file-name stem made from a scene name (with ``_energy.png`` the name stays far below 255 bytes)
+MAX_STEM = 100
+
+
+def file_stem(name: object) -> str:
+    r"""Return a safe file-name stem for a scene ``name``: a name, never a path.
+
+    Characters other than letters, digits, ``-``, ``_`` and ``.`` become ``_`` (so ``/``,
+    ``\``, NUL and control characters cannot make a path), leading dots are dropped (no
+    ``..``, no hidden file), the stem is cut to :data:`MAX_STEM` characters, and an empty
+    result is ``scene``. Every file written from it stays in the folder it is joined to.
+    """
+    import re
+
+    stem = re.sub(r"[^A-Za-z0-9._-]", "_", str(name)).lstrip(".")[:MAX_STEM].rstrip(".")
+    return stem or "scene"

@@ -73,6 +73,12 @@ class Scene:
         """Names of the effects the system evaluates."""
         return self.system.effect_names()
 
+    def __repr__(self) -> str:
+        """Return a one-line summary (name, size, effects, settings), never the arrays."""
+        s = self.settings
+        return (f"Scene({self.name!r}: {self.dim}D, {self.size_text()}, effects {self.effects}, "
+                f"method={s.method!r}, dt={s.dt:g}, t_end={s.t_end:g}, save_every={s.save_every})")
+
     def springs(self) -> Effect | None:
         """Return the effect holding the scene's Hooke springs (capability ``hooke_springs``), if any."""
         return spring_effect(self.system.effects)

@@ -20,6 +20,10 @@ Decisions (documented in the README):
 
 from __future__ import annotations
 
+import time
+import warnings
+import weakref
+
 from mslab.integrators.base import Integrator
 from mslab.ledger import initial_energy_scale, xs_bytes
 from mslab.scene import Scene
@@ -86,12 +90,48 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
         Ctrl-C (``.trajectory`` keeps the saved part).
     """
     s = scene.settings
+    begun = time.perf_counter()
     sim = Simulation(scene, method, dt, t_end=s.t_end if t_end is None else t_end, save_every=save_every,
                      blowup=blowup, stable_dt=stable_dt, backend=backend, check_stability=check_stability,
                      energy_blowup=energy_blowup, threads=threads, _stacklevel=3)
     sim.advance(progress=progress)
+    _frame_loop_hint(scene, sim, time.perf_counter() - begun)
     return sim.trajectory
 
 
-__all__ = ["Simulation", "SimulationInterrupted", "initial_energy_scale", "simulate", "step_count",
-           "xs_bytes"]
+#: a call of at most this many steps is a "short" one; this many alike in a row on one system warn once
+SHORT_CALL, SHORT_CALLS = 256, 10
+_short: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # System: (alike, calls, seconds, ...)
+
+
+def _frame_loop_hint(scene: Scene, sim: Simulation, seconds: float) -> None:
+    """Warn once, after :data:`SHORT_CALLS` alike short calls on one system: a frame loop needs a session.
+
+    A frame loop through ``simulate`` (each frame a new scene from the last state, the same
+    system) redoes the set-up a session does once (copy, stability pre-check, backend,
+    energy scale); the warning names the measured factor: the calls' whole time over their
+    stepping time. Counted by calls alike (same method, dt and steps: a sweep over dt never
+    warns), never by timing, so whether it warns is deterministic.
+    """
+    alike = (sim.integrator.name, sim.dt, sim.step)
+    if sim.step > SHORT_CALL:
+        _short.pop(scene.system, None)
+        return
+    last, calls, total, stepping, warned = _short.get(scene.system, (None, 0, 0.0, 0.0, False))
+    if last != alike:
+        calls, total, stepping = 0, 0.0, 0.0
+    calls, total, stepping = calls + 1, total + seconds, stepping + sim.stats.wall_time
+    _short[scene.system] = (alike, calls, total, stepping, warned or calls >= SHORT_CALLS)
+    if calls == SHORT_CALLS and not warned:
+        warnings.warn(f"simulate was called {calls} times on scene {scene.name!r} for {sim.step} steps "
+                      f"each; each call costs {total / max(stepping, 1e-9):.3g}x its stepping time (set-up "
+                      f"redone every call): a frame loop belongs in mslab.Simulation(scene, ...).advance(n)",
+                      FrameLoopWarning, stacklevel=3)
+
+
+class FrameLoopWarning(UserWarning):
+    """``simulate`` called again and again for a few steps on one scene: use :class:`Simulation`."""
+
+
+__all__ = ["FrameLoopWarning", "Simulation", "SimulationInterrupted", "initial_energy_scale", "simulate",
+           "step_count", "xs_bytes"]

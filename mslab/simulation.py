@@ -12,15 +12,24 @@ it saves when they are read (:mod:`mslab.ledger`) and a ledger check every
 :attr:`mslab.stopping.LedgerCheck.every` steps (:mod:`mslab.stopping`).
 
 **Backend** (decided once per session, deterministically, never by timing): ``"numpy"``,
-``"numba"``, or ``"auto"`` (default), decided at the first ``advance`` by
+``"numba"``, or ``"auto"`` (default), decided when the session starts by
 :func:`mslab.fast.worth_compiling` from the session's expected steps: its declared length
-(``t_end``) when it has one, else the larger of the first advance and :data:`HORIZON`
-steps — so stepping a 64 x 64 cloth one frame at a time gets the compiled loop, a
-five-particle chain the numpy one.
+(``t_end``) when it has one (so a session and ``simulate()`` of the same length take the
+same backend), else :data:`HORIZON` steps — so stepping a 64 x 64 cloth one frame at a time
+gets the compiled loop, a five-particle chain the numpy one. Nothing read or advanced later
+changes it.
+
+**Owned data**: the session steps a private deep copy of the scene (system, effects, initial
+state) and of the method, taken when it starts; :attr:`Simulation.state` and
+:attr:`Simulation.trajectory` are copies. Editing the scene, the method object or anything
+read from the session changes nothing in the run, on either backend. ``advance`` from a
+second thread while one runs is refused (RuntimeError).
 """
 
 from __future__ import annotations
 
+import copy
+import threading
 import time
 from dataclasses import replace
 from typing import TYPE_CHECKING
@@ -28,11 +37,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from mslab import fast, jit, stopping
+from mslab.checks import flag, real, whole
 from mslab.errors import ConvergenceError, InstabilityError, StepFailure
 from mslab.integrators.base import Integrator, get_method
 from mslab.ledger import NEVER, Samples, initial_energy_scale
 from mslab.state import State
-from mslab.stepping import CompiledLoop, NumpyLoop
+from mslab.stepping import CompiledLoop, LedgerOver, NumpyLoop, interpolate_marks
 from mslab.steps import check_dt, step_count
 from mslab.stopping import LedgerCheck, hint, position_limit
 from mslab.trajectory import Energy, Stats, Trajectory
@@ -86,19 +96,31 @@ class Simulation:
                  t_end: float | None = None, save_every: int | None = None, blowup: float = 1e6,
                  stable_dt: float | None = None, backend: str | None = None, check_stability: bool = True,
                  energy_blowup: float = 1e4, threads: int | None = None, _stacklevel: int = 2):
+        from mslab.scene import Scene
+
+        if not isinstance(scene, Scene):
+            raise TypeError(f"scene must be an mslab Scene, got {type(scene).__name__}")
         s = scene.settings
+        if backend is not None and not isinstance(backend, str):
+            raise TypeError(f"backend must be a string or None, got {type(backend).__name__}")
         self.backend = fast.check_backend(backend)
-        self.threads = jit.thread_count(threads)
-        self.scene, self.system = scene, scene.system
-        self.integrator = get_method(method if method is not None else s.method)
+        self.threads = jit.thread_count(None if threads is None else whole("threads", threads, 1))
+        self.scene = scene  # the user's: the run steps its own copy (editing the scene changes nothing)
+        own = copy.deepcopy(scene)
+        self._scene, self.system = own, own.system
+        if method is not None and not isinstance(method, (str, Integrator)):
+            raise TypeError(f"method must be a method name or an Integrator, got {type(method).__name__}")
+        self.integrator = copy.deepcopy(get_method(method if method is not None else s.method))
         self.dt = check_dt(s.dt if dt is None else dt)
-        self.end = None if t_end is None else step_count(float(t_end), self.dt)
+        self.end = None if t_end is None else step_count(t_end, self.dt)
         if save_every is None:  # open-ended: only the first state (hours of frames fill no memory)
             save_every = s.save_every if self.end is not None else NEVER
-        self.save_every = int(save_every)
-        if self.save_every < 1:
-            raise ValueError(f"save_every must be >= 1, got {self.save_every}")
-        state0 = scene.state0
+        self.save_every = whole("save_every", save_every, 1)
+        blowup = real("blowup", blowup, positive=True, allow_inf=True)
+        energy_blowup = real("energy_blowup", energy_blowup, positive=True, allow_inf=True)
+        stable_dt = None if stable_dt is None else real("stable_dt", stable_dt, minimum=0.0)  # 0: none
+        check_stability = flag("check_stability", check_stability)
+        state0 = own.state0
         for what, values in (("positions", state0.x), ("velocities", state0.v)):
             if not np.all(np.isfinite(values)):  # before any work: a run from NaN "blows up" at step 1
                 raise ValueError(f"initial state: {what} are not finite (NaN or inf) at particles "
@@ -109,12 +131,14 @@ class Simulation:
             self.stable_dt = stopping.check_stability(scene, self.integrator, self.dt, stable_dt,
                                                       stacklevel=_stacklevel + 1)
         self.stats = Stats(method=self.integrator.name, dt=self.dt)
-        self._samples = Samples(self.system, scene.state0.x.shape, self.save_every, self.end)
-        self._check = LedgerCheck(initial_energy_scale(scene), energy_blowup, self.integrator.n_stages,
-                                  self.end, scene)
-        self._limit = position_limit(scene, blowup)
+        self._samples = Samples(self.system, state0.x.shape, self.save_every, self.end)
+        self._check = LedgerCheck(initial_energy_scale(own), energy_blowup, self.integrator.n_stages,
+                                  self.end, own)
+        self._limit = position_limit(own, blowup)
         self._loop: NumpyLoop | CompiledLoop | None = None
         self._failed: Exception | None = None
+        self._running = threading.Lock()
+        self._begin()  # the backend and the method's start: fixed when the session starts
 
     # -- what the session is at ---------------------------------------------------------------
     @property
@@ -129,14 +153,14 @@ class Simulation:
 
     @property
     def state(self) -> State:
-        """The current state (a copy where the compiled loop holds it)."""
-        self._begin(0)
-        return self._loop.state()
+        """A copy of the current state (positions, velocities, the method's memory) on every backend."""
+        state = self._loop.state()
+        return replace(state, x=state.x.copy(), v=state.v.copy(),
+                       memory=tuple(np.array(m, copy=True) for m in state.memory))
 
     @property
     def compiled(self) -> bool:
-        """Whether the compiled loop steps this session (decided at the first advance)."""
-        self._begin(0)
+        """Whether the compiled loop steps this session (decided when it starts)."""
         return isinstance(self._loop, CompiledLoop) or self._stepped is not self.system
 
     @property
@@ -144,7 +168,6 @@ class Simulation:
         """The saved samples so far, and the current state when it is not one of them."""
         if self._failed is not None:
             return self._failed.trajectory
-        self._begin(0)
         return self._trajectory(self._samples.k, True, current=True)
 
     # -- stepping ------------------------------------------------------------------------------
@@ -157,6 +180,15 @@ class Simulation:
         then stays stopped), SimulationInterrupted on Ctrl-C. ``progress`` as in
         :func:`mslab.simulate`.
         """
+        if not self._running.acquire(blocking=False):
+            raise RuntimeError("advance is already running on this session in another thread; a session "
+                               "steps one call at a time (wait for it, or use one session per thread)")
+        try:
+            self._advance_locked(n, t, progress)
+        finally:
+            self._running.release()
+
+    def _advance_locked(self, n: int | None, t: float | None, progress: object) -> None:
         if self._failed is not None:
             raise ValueError(f"the session stopped at step {self.step}: {self._failed}")
         count = self._count(n, t)
@@ -175,27 +207,23 @@ class Simulation:
     def _count(self, n: int | None, t: float | None) -> int:
         if n is not None and t is not None:
             raise ValueError("advance takes a number of steps or a time t, not both")
-        if t is not None:
-            return step_count(float(t), self.dt)
+        if t is not None:  # t = 0 is 0 steps, as n = 0 is
+            return 0 if real("t", t, minimum=0.0) == 0.0 else step_count(t, self.dt)
         if n is None:
             if self.end is None:
                 raise ValueError("advance needs a number of steps or a time t (the session has no t_end)")
             return self.end - self.step
-        if isinstance(n, bool) or int(n) != n or n < 0:
-            raise ValueError(f"advance takes a whole number of steps >= 0, got {n!r}")
-        return int(n)
+        return whole("n", n, 0)
 
-    def _begin(self, first: int) -> None:
-        """Choose the loop (``auto``: from the expected steps) and start the method; once."""
-        if self._loop is not None:
-            return
-        expected = self.end if self.end is not None else max(first, HORIZON)
-        runner = fast.stepper(self.system, self.integrator, self.backend, expected, self.scene.state0)
+    def _begin(self) -> None:
+        """Choose the loop (``auto``: from the declared length, else :data:`HORIZON`) and start the method."""
+        expected = self.end if self.end is not None else HORIZON
+        runner = fast.stepper(self.system, self.integrator, self.backend, expected, self._scene.state0)
         self._stepped = self.system  # the implicit methods' compiled path steps their own
         if runner is not None and runner.view is not None:  # numpy code on a compiled view
             self._stepped, runner = runner.view, None
         before, start = self.system.counters.snapshot(), time.perf_counter()
-        state = self.integrator.start(self._stepped, self.scene.state0, self.dt)
+        state = self.integrator.start(self._stepped, self._scene.state0, self.dt)
         self._account(before, start)
         self._samples.add(state.x, state.v, state.dissipated, self._totals())
         self._check.start(float(self._samples.energy(1, copy=False).total[0]))
@@ -207,9 +235,8 @@ class Simulation:
     def _advance(self, count: int, progress: object) -> None:
         from mslab.progress import make_progress
 
-        self._begin(count)
         loop, samples, check = self._loop, self._samples, self._check
-        target, first = loop.step + count, samples.k
+        target, k_done = loop.step + count, samples.k
         bar, own_bar = make_progress(progress, target - loop.step, self.integrator.name)
         before, start = self.system.counters.snapshot(), time.perf_counter()
         base = self._totals()
@@ -226,7 +253,10 @@ class Simulation:
                 begun = mark() if isinstance(loop, CompiledLoop) else None
                 ok = loop.run(stop, samples, mark)
                 if begun is not None:
-                    _interpolate_marks(samples, k_done, done, loop.step, begun, mark())
+                    interpolate_marks(samples, k_done, done, loop.step, begun, mark())
+                # one order of events per step, whatever the chunks: a saved sample's ledger over
+                # the bound, then a position blow-up (at the step it happened), then the periodic check
+                self._raise_over(k_done, None if ok else loop.step)
                 if not ok:
                     raise FloatingPointError
                 if check.due(loop.step):
@@ -244,41 +274,61 @@ class Simulation:
             ledger = "K + U + D - W_ext" if self.system.driving else "K + U + D"
             raise self._stop(InstabilityError, f"blew up by step {loop.step}", f"the state stayed finite "
                              f"but the energy ledger {ledger} {grew}{hint(self.stable_dt)}") from None
+        except LedgerOver as over:
+            self._account(before, start, bar if own_bar else None)
+            raise self._ledger_stop(over.j) from None
         except StepFailure as err:
             self._account(before, start, bar if own_bar else None)
+            j = self._over(k_done, loop.step + 1)  # a sample over the bound before the failing step
+            if j is not None:
+                raise self._ledger_stop(j) from None
             raise self._stop(ConvergenceError, f"failed at step {loop.step + 1}", str(err),
                              step=loop.step + 1) from None
         except KeyboardInterrupt:
             self._account(before, start, bar if own_bar else None)
             raise SimulationInterrupted(self._trajectory(samples.k, False, current=False)) from None
         self._account(before, start, bar if own_bar else None)
-        self._ledger_over(first)
 
     def _totals(self) -> tuple:
         """Return the session's stepping time and counters so far (a sample's mark)."""
         return self.stats.wall_time, {k: getattr(self.stats, k) for k in self.system.counters.snapshot()}
 
-    def _ledger_over(self, first: int) -> None:
-        """Stop at the first sample saved by this call whose ledger gained over ``energy_blowup``.
+    def _over(self, first: int, before_step: int | None = None) -> int | None:
+        """Return the first sample from ``first`` (before step ``before_step``) whose ledger gained too much.
 
-        Checked on the saved samples when a call ends (a position blow-up later in the same
-        call comes first), the run reported as stopped at that sample.
+        Checked on the samples each stretch of steps saved, before that stretch's position
+        blow-up (which stops at its own step, not at a sample of it) and its periodic check.
         """
         samples, check = self._samples, self._check
-        if not check.on:
-            return
+        if not check.on or samples.k <= first:
+            return None
+        k = samples.k
+        if before_step is not None:
+            k = int(np.searchsorted(samples.steps[:k], before_step, side="left"))
+            if k <= first:
+                return None
         energy = samples.energy(samples.k, copy=False)
         scale = check.scale if check.scale > 0 else energy.energy_scale()  # at rest: the run's own
-        j = check.over(energy.total, first, scale)
-        if j is None:
-            return
+        return check.over(energy.total[:k], first, scale)
+
+    def _raise_over(self, first: int, before_step: int | None) -> None:
+        j = self._over(first, before_step)
+        if j is not None:
+            raise LedgerOver(j)
+
+    def _ledger_stop(self, j: int) -> Exception:
+        """Return the error that stops the run at sample ``j``, whose ledger gained over ``energy_blowup``."""
+        samples = self._samples
+        energy = samples.energy(samples.k, copy=False)
+        check = self._check
+        scale = check.scale if check.scale > 0 else energy.energy_scale()
         step = int(samples.steps[j])
         self.stats.wall_time, counted = samples.marks[j]
         for key, value in counted.items():
             setattr(self.stats, key, value)
         growth = (energy.total[j] - energy.total[0]) / scale
         ledger = "K + U + D - W_ext" if self.system.driving else "K + U + D"
-        raise self._stop(InstabilityError, f"blew up by step {step}", f"the state stayed finite but the "
+        return self._stop(InstabilityError, f"blew up by step {step}", f"the state stayed finite but the "
                          f"energy ledger {ledger} grew by {growth:.3g} x the scene's energy scale"
                          f"{hint(self.stable_dt)}", step=step, keep=j)
 
@@ -332,23 +382,12 @@ class Simulation:
                 (energy.kinetic, energy.potential, energy.dissipated, energy.external), point, strict=True)]
             return Trajectory(np.append(t, loop.step * self.dt), np.concatenate((samples.x[:k], x[None])),
                               np.concatenate((samples.v[:k], v[None])), Energy(*parts), stats, complete,
-                              self.scene.name)
+                              self._scene.name)
         if k == samples.steps.size:  # the whole declared run: hand the arrays over (memory budget: 1 x)
             return Trajectory(t, samples.x, samples.v, samples.energy(k, copy=False), stats, complete,
-                              self.scene.name)
+                              self._scene.name)
         return Trajectory(t, samples.x[:k].copy(), samples.v[:k].copy(), samples.energy(k, copy=True), stats,
-                          complete, self.scene.name)
-
-
-def _interpolate_marks(samples: Samples, k_done: int, done: int, step: int, begun: tuple,
-                       ended: tuple) -> None:
-    """Add the marks of the samples a compiled call saved (every compiled step costs the same)."""
-    (t0, c0), (t1, _) = begun, ended
-    per_step = (ended[1]["n_force"] - c0["n_force"]) // max(step - done, 1)
-    for i in range(k_done, samples.k):
-        part = (samples.steps[i] - done) / max(step - done, 1)
-        counted = {**c0, "n_force": c0["n_force"] + per_step * int(samples.steps[i] - done)}
-        samples.marks.append((t0 + part * (t1 - t0), counted))
+                          complete, self._scene.name)
 
 
 class _LedgerGrew(Exception):

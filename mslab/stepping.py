@@ -101,3 +101,22 @@ class CompiledLoop:
         self.step, samples.k, ok = self.runner.run(self.dt, self.step, stop, samples.steps, samples.k,
                                                    samples.x, samples.v, samples.d, self.limit)
         return ok
+
+
+def interpolate_marks(samples: Samples, k_done: int, done: int, step: int, begun: tuple,
+                       ended: tuple) -> None:
+    """Add the marks of the samples a compiled call saved (every compiled step costs the same)."""
+    (t0, c0), (t1, _) = begun, ended
+    per_step = (ended[1]["n_force"] - c0["n_force"]) // max(step - done, 1)
+    for i in range(k_done, samples.k):
+        part = (samples.steps[i] - done) / max(step - done, 1)
+        counted = {**c0, "n_force": c0["n_force"] + per_step * int(samples.steps[i] - done)}
+        samples.marks.append((t0 + part * (t1 - t0), counted))
+
+
+class LedgerOver(Exception):
+    """A saved sample's ledger gained over the bound (internal: turned into InstabilityError)."""
+
+    def __init__(self, j: int):
+        super().__init__(j)
+        self.j = j

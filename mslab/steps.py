@@ -8,20 +8,18 @@ from __future__ import annotations
 
 import numpy as np
 
+from mslab.checks import real
+
 
 def check_dt(dt: float) -> float:
-    """Return ``dt`` as a float; ValueError unless it is a finite number > 0."""
-    value = float(dt)
-    if not (np.isfinite(value) and value > 0):
-        raise ValueError(f"dt must be a finite number > 0, got {dt!r}")
-    return value
+    """Return ``dt`` as a float: TypeError unless a number (not a bool), ValueError unless finite and > 0."""
+    return real("dt", dt, positive=True)
 
 
 def step_count(t_end: float, dt: float) -> int:
     """Return the number of fixed steps of size dt that reach t_end exactly; ValueError otherwise."""
     dt = check_dt(dt)
-    if not (np.isfinite(t_end) and t_end > 0):
-        raise ValueError(f"t_end must be a finite number > 0, got {t_end!r}")
+    t_end = real("t_end", t_end, positive=True)
     ratio = t_end / dt
     n = max(1, round(ratio))
     if abs(n - ratio) > 1e-9 * max(1.0, ratio):

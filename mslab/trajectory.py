@@ -104,3 +104,11 @@ class Trajectory:
     stats: Stats
     complete: bool = True
     scene_name: str = ""
+
+    def __repr__(self) -> str:
+        """Return a one-line summary (scene, samples, time span, method, steps), never the arrays."""
+        n, span = len(self.t), (f"t {self.t[0]:g}..{self.t[-1]:g}" if len(self.t) else "no time")
+        shape = "x".join(str(d) for d in np.shape(self.x)[1:])
+        state = "complete" if self.complete else "partial"
+        return (f"Trajectory({self.scene_name!r}: {n} samples of {shape}, {span}, {self.stats.method} "
+                f"dt={self.stats.dt:g}, {self.stats.steps} steps, {state})")

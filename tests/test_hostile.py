@@ -233,3 +233,35 @@ def test_pinned_scene_stays_still_for_every_method():
         traj = mslab.simulate(scene, method=method, dt=1e-2, t_end=0.1, backend="numpy")
         np.testing.assert_array_equal(traj.x, np.broadcast_to(scene.state0.x, traj.x.shape))
         np.testing.assert_array_equal(traj.v, 0.0)
+
+
+# -- issue 37: the red team's tracebacks, now one line and exit 2 -------------------------------------
+
+def test_a_string_dim_is_one_line(tmp_path, capsys):
+    path = _write(tmp_path, "dim.toml", PENDULUM.replace("dim = 2", 'dim = "2"'))
+    assert "scene.dim" in _one_line(capsys, ["validate", str(path)])
+
+
+@pytest.mark.parametrize("header", ["[" + ".".join(["a"] * 2000) + "]\nx = 1\n",
+                                    ".".join(["b"] * 2000) + " = 1\n"])
+def test_keys_nested_thousands_deep_by_dots_are_one_line(tmp_path, capsys, header):
+    path = _write(tmp_path, "deep.toml", header + PENDULUM)
+    assert "nested more than" in _one_line(capsys, ["validate", str(path)])
+
+
+@pytest.mark.parametrize("argv", [["validate", "pendulum", "--max-memory", "1e999"],
+                                  ["precision", "pendulum", "--rtols", "-1"],
+                                  ["precision", "pendulum", "--rtols", "nan"],
+                                  ["precision", "pendulum", "--budget", "nan"]])
+def test_odd_numbers_on_the_command_line_are_one_line(capsys, argv):
+    _one_line(capsys, argv)
+
+
+def test_validate_warns_for_a_dt_over_the_stable_limit_like_run(capsys):
+    """rk4 on the pendulum: limit 2.8/omega; dt 5x over it is warned about (one line), still exit 0."""
+    argv = ["validate", "pendulum", "--method", "rk4", "--t-end", "1", "--no-timing", "--dt"]
+    assert main([*argv, "0.1"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("mslab: warning:") == 1 and "is above it" in err
+    assert main([*argv, "0.001"]) == 0
+    assert "warning" not in capsys.readouterr().err

@@ -127,7 +127,7 @@ def test_blowup_in_a_session_is_the_error_of_one_long_run():
 
 
 def test_auto_backend_is_decided_once_from_the_expected_work():
-    """Open-ended: the first advance or HORIZON steps, whichever is more; declared: the length."""
+    """Open-ended: HORIZON steps (fixed at the start); declared: the length."""
     from mslab.simulation import HORIZON
 
     method = mslab.get_method("symplectic_euler")
@@ -223,3 +223,41 @@ def test_springs_take_one_value_for_all_or_one_per_spring():
         assert np.max(np.abs(f_compiled - f_numpy)) <= 8 * np.finfo(float).eps * 500 * 2.3  # k |d|
     with pytest.raises(ValueError, match=r"stiffness needs one value or one per spring \(2\)"):
         Springs(pairs, [1.0, 2.0, 3.0], 1.0, 0.0, 3)
+
+
+# -- issue 39: one definition of what a run saves and counts, also where it stops early -----------------
+
+BLOWUPS = [("topology_pair", "euler", "numpy"), ("topology_pair", "euler", "numba"),
+           ("topology_pair", "midpoint", "numpy"), ("stiff_chain", "midpoint", "numpy"),
+           ("stiff_chain", "euler", "numba")]
+
+
+@pytest.mark.parametrize(("name", "method", "backend"), BLOWUPS, ids=["-".join(c) for c in BLOWUPS])
+def test_a_blowup_saves_and_counts_the_same_in_any_chunks(name, method, backend):
+    """A ledger bound met at a saved sample before a position blow-up stops every chunking there."""
+    sc = mslab.load_scene(name)
+    dt = sc.settings.dt * 4
+    options = {"dt": dt, "t_end": 4000 * dt, "save_every": 7, "backend": backend}
+    with pytest.raises(mslab.InstabilityError) as whole:
+        mslab.simulate(sc, method, **options)
+    for chunks in ((1, 7, 13, 4, 11), (3,), (50, 1)):
+        sim = mslab.Simulation(sc, method, **options)
+        with pytest.raises(mslab.InstabilityError) as parts:
+            for n in itertools.cycle(chunks):
+                sim.advance(min(n, 4000 - sim.step))
+        a, b = parts.value, whole.value
+        assert (a.step, str(a)) == (b.step, str(b))
+        assert_bitwise(a.trajectory, b.trajectory)
+
+
+@pytest.mark.parametrize("backend", ["numpy", "auto"])
+def test_fast_mass_spring_counts_its_factorisation_in_any_chunks(backend):
+    """The global matrix is factored once per run, counted in a session as in one call (was 0 vs 1)."""
+    options = {"dt": 2e-3, "t_end": N_STEPS * 2e-3, "save_every": SAVE_EVERY, "backend": backend}
+    sc = scene()
+    first = mslab.simulate(sc, "fast_mass_spring", **options)
+    sim = mslab.Simulation(sc, "fast_mass_spring", **options)
+    chunked(sim, N_STEPS)
+    again = mslab.simulate(sc, "fast_mass_spring", **options)
+    assert first.stats.n_factor == sim.stats.n_factor == again.stats.n_factor == 1
+    assert_bitwise(sim.trajectory, first)

@@ -64,8 +64,12 @@ def run(args: argparse.Namespace) -> int:
     from mslab.integrators.base import get_method
     from mslab.simulate import step_count
 
-    if args.jobs < 1 or args.repeats < 1 or args.budget < 0:
-        raise CommandError("--jobs and --repeats must be >= 1, --budget >= 0")
+    if args.jobs < 1 or args.repeats < 1 or not 0 <= args.budget < float("inf"):
+        raise CommandError("--jobs and --repeats must be >= 1, --budget a finite number >= 0")
+    for rtol in args.rtols or ():  # scipy's own limits: > 100 eps (else it clamps with a warning), < 1
+        if not 2.3e-14 <= rtol < 1:
+            raise CommandError(f"{rtol:g} is not a tolerance; give numbers between 2.3e-14 and 1",
+                               key="--rtols")
     scene = resolve_scene(args.scene)
     t_end = float(args.t_end if args.t_end is not None else scene.settings.t_end)
     if args.dts:

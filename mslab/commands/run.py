@@ -174,9 +174,10 @@ def save_outputs(folder: Path, traj: Trajectory, scene: Scene, animate: str | No
     import matplotlib.pyplot as plt
 
     from mslab.commands.common import save_figure
+    from mslab.files import file_stem
     from mslab.plots import plot_configuration, plot_energy
 
-    name = scene.name
+    name = file_stem(scene.name)  # a name, never a path: every file stays inside ``folder``
     files = {} if files is None else files
     files["data"] = save_npz(folder / f"{name}.npz", traj, scene)
     phase("saving")  # (tests: a Ctrl-C while saving)
@@ -322,7 +323,9 @@ def run(args: argparse.Namespace) -> int:
     problem = memory_problem(cost, budget, budget_name)
     if problem:
         raise CommandError(problem, where=str(args.scene), key="run")
-    folder = out_path(args, default=f"out/{scene.name}" if args.animate else None)
+    from mslab.files import file_stem
+
+    folder = out_path(args, default=f"out/{file_stem(scene.name)}" if args.animate else None)
     if folder is not None:  # found now, not after the run: its results would be lost
         from mslab.files import output_problem
 

@@ -12,6 +12,7 @@ writes it to ``DIR/validate.json``. Exit code 0 when every file is valid, 2 othe
 
 from __future__ import annotations
 
+import math
 import sys
 from typing import TYPE_CHECKING
 
@@ -27,6 +28,8 @@ from mslab.commands.common import (
 
 if TYPE_CHECKING:
     import argparse
+
+    from mslab.scene import Scene
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -70,6 +73,7 @@ def check(name: str, budget: int | None, budget_name: str, timing: bool,
                 "error": f"{name}: run: {problem}", "cost": cost.as_dict()}
     record = {"file": name, "ok": True, **scene.summary(), "steps": cost.steps, "cost": cost.as_dict(),
               "seconds_per_step": None, "estimated_seconds": None}
+    record.update(_stability(scene))
     if timing:
         with Progress(None, f"{name}: timing a few steps"):
             per_step, timed = time_per_step(scene)
@@ -77,6 +81,17 @@ def check(name: str, budget: int | None, budget_name: str, timing: bool,
             record["seconds_per_step"] = per_step
             record["estimated_seconds"] = per_step * cost.steps
     return record
+
+
+def _stability(scene: Scene) -> dict:
+    """Return the predicted stable dt (as ``mslab run`` computes it) and a warning when dt is above it."""
+    from mslab.commands.run_checks import predicted_dt, prediction_line
+
+    method, dt = scene.settings.method, scene.settings.dt
+    predicted, _ = predicted_dt(scene, method)
+    over = predicted is not None and not math.isnan(predicted) and dt > predicted
+    return {"predicted_stable_dt": predicted if predicted is not None and math.isfinite(predicted) else None,
+            "warning": prediction_line(method, dt, predicted) if over else None}
 
 
 def line(record: dict) -> str:
@@ -111,6 +126,8 @@ def run(args: argparse.Namespace) -> int:
             continue
         if record["ok"]:
             say(args, line(record))
+            if record.get("warning"):  # as `mslab run` warns, before any work
+                print(f"mslab: warning: {name}: {record['warning']}", file=sys.stderr)
         else:
             print(f"mslab: error: {record['error']}", file=sys.stderr)
     doc = {"files": results, "ok": all(r["ok"] for r in results)}

@@ -52,7 +52,7 @@ def parse_scene_text(text: str, source: str | None = None) -> dict:
         raise SceneError(f"line {deep[0]}", f"arrays or tables nested more than {MAX_DEPTH} deep "
                          f"(a scene needs at most 3: positions = [[x, y], ...])", source)
     try:
-        return tomllib.loads(text)
+        doc = tomllib.loads(text)
     except RecursionError:
         raise SceneError("toml", f"nested too deep to read (more than {MAX_DEPTH} levels)", source) from None
     except tomllib.TOMLDecodeError as err:
@@ -69,6 +69,27 @@ def parse_scene_text(text: str, source: str | None = None) -> dict:
         else:
             key, reason = "toml", f"TOML syntax error: {reason}"
         raise SceneError(key, reason, source) from None
+    deep = _deepest(doc)
+    if deep is not None:  # dotted keys and headers ([a.b.c...]) nest without brackets
+        raise SceneError(deep, f"keys nested more than {MAX_DEPTH} deep (a scene needs at most 3)", source)
+    return doc
+
+
+def _deepest(doc: dict) -> str | None:
+    """Return the first dotted key (cut) nested beyond :data:`MAX_DEPTH` tables and arrays, or None.
+
+    Iterative, so a file of 2,000 dotted header parts cannot end in a RecursionError.
+    """
+    stack: list[tuple[object, str, int]] = [(doc, "", 0)]
+    while stack:
+        value, key, depth = stack.pop()
+        if depth > MAX_DEPTH:
+            return key[:80] + ("..." if len(key) > 80 else "")
+        if isinstance(value, dict):
+            stack.extend((v, f"{key}.{k}" if key else str(k), depth + 1) for k, v in value.items())
+        elif isinstance(value, list):
+            stack.extend((v, f"{key}[{i}]", depth + 1) for i, v in enumerate(value))
+    return None
 
 
 def read_scene_file(path: Path, source: str) -> dict:

@@ -100,10 +100,12 @@ def _check_size(doc: Mapping, max_bytes: int | None) -> None:
             return
     scene = doc.get("scene", {})
     dim = scene.get("dim", 2) if isinstance(scene, Mapping) else 2
+    if isinstance(dim, bool) or dim not in (1, 2, 3):
+        return  # a wrong dim (dim = "2") is named while building
     total, biggest = 0, ("particles.", 0)
     for prefix, table in _bodies(doc):
         generator = table.get("generator")
-        if generator not in GENERATORS or dim not in (1, 2, 3):
+        if generator not in GENERATORS:
             continue  # an explicit list is already in memory; other mistakes are named while building
         n = int(np.prod(generator_shape(generator, table, prefix, dim)["shape"], dtype=object))
         total += n
