@@ -22,6 +22,7 @@ import textwrap
 from pathlib import Path
 
 from mslab.grading import grade
+from mslab.grading.isolation import detect
 from mslab.grading.report import format_report
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -114,7 +115,7 @@ def test_the_next_test_still_runs(student):
 
 
 def test_the_runner_spends_bounded_cpu_on_the_checks_of_one_test():
-    job = {"nonce": "n0nce", "timeout": 5.0, "isolation": "rlimits", "check_cpu": 1.0,
+    job = {"nonce": "n0nce", "timeout": 5.0, "isolation": detect("auto"), "check_cpu": 1.0,
            "items": [{"key": "k", "module": "m.py", "student_source": "def answer():\n    return 7\n",
                       "tests": {"test_hidden.py": SLOW_CHECK}}]}
     proc = subprocess.run([sys.executable, "-m", "mslab.grading.runner"], input=json.dumps(job),
