@@ -103,3 +103,18 @@ class Scene:
 def spring_effect(effects: list[Effect]) -> Effect | None:
     """Return the first effect that declares Hooke springs (:meth:`Effect.hooke_springs`), or None."""
     return next((e for e in effects if e.hooke_springs() is not None), None)
+
+
+def own_copy(scene: Scene) -> Scene:
+    """Return a stepping session's deep copy of ``scene``, but keep a system whose forces a user replaced.
+
+    A system with ``rhs``, ``acceleration`` or ``force`` replaced on the instance (say, to log
+    calls) is stepped as given: a copy would keep calling the user's function, which calls the
+    original system, so the copy's counters would miss every evaluation. Only such a system is
+    shared with the user; everything else is copied (editing the scene changes nothing in a run).
+    """
+    import copy
+
+    if {"rhs", "acceleration", "force"} & set(vars(scene.system)):
+        return replace(copy.deepcopy(replace(scene, system=None)), system=scene.system)
+    return copy.deepcopy(scene)

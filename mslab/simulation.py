@@ -96,7 +96,7 @@ class Simulation:
                  t_end: float | None = None, save_every: int | None = None, blowup: float = 1e6,
                  stable_dt: float | None = None, backend: str | None = None, check_stability: bool = True,
                  energy_blowup: float = 1e4, threads: int | None = None, _stacklevel: int = 2):
-        from mslab.scene import Scene
+        from mslab.scene import Scene, own_copy
 
         if not isinstance(scene, Scene):
             raise TypeError(f"scene must be an mslab Scene, got {type(scene).__name__}")
@@ -106,7 +106,7 @@ class Simulation:
         self.backend = fast.check_backend(backend)
         self.threads = jit.thread_count(None if threads is None else whole("threads", threads, 1))
         self.scene = scene  # the user's: the run steps its own copy (editing the scene changes nothing)
-        own = copy.deepcopy(scene)
+        own = own_copy(scene)
         self._scene, self.system = own, own.system
         if method is not None and not isinstance(method, (str, Integrator)):
             raise TypeError(f"method must be a method name or an Integrator, got {type(method).__name__}")

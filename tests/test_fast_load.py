@@ -46,7 +46,8 @@ def test_a_cached_loop_loads_without_the_compiler_set_up_and_steps_the_same():
     fast.stepper(scene.system, method, "numba")  # compiled and cached here if it was not yet
     here = mslab.simulate(scene, method, t_end=0.05, backend="numba")
     doc = _fresh()
-    assert (doc["hits"], doc["misses"]) == (1, 0)  # loaded from the cache, not compiled
+    assert doc["hits"] >= 1 and doc["misses"] == 0  # loaded from the cache, not compiled (the session
+    # steps its own copy of the scene: a second signature of the same cached code may load too)
     assert not doc["linalg"]  # numba's numpy/linear-algebra implementations were not set up
     assert doc["x"] == here.x[-1].tolist()  # bitwise the steps of this (compiling) process
 

@@ -28,14 +28,10 @@ run the entry scripts here in those layouts).
 
 from __future__ import annotations
 
-import argparse
-import contextlib
 import importlib.metadata
-import io
 import json
 import os
 import shutil
-import sys
 import tempfile
 import tomllib
 from collections.abc import Callable
@@ -43,7 +39,6 @@ from pathlib import Path
 
 from mslab.files import current_umask
 from mslab.grading.layout import BEGIN, END, TEST, find_exercises
-from mslab.grading.platforms import write_json
 from mslab.grading.release import SKIP_DIRS, SKIP_SUFFIXES, strip_solutions
 
 PACKAGE_DIR = Path(__file__).resolve().parents[1]
@@ -71,7 +66,7 @@ GRADESCOPE_RUN = """#!/usr/bin/env bash
 ROOT="${{MSLAB_AUTOGRADER_ROOT:-/autograder}}"
 PY="${{MSLAB_PYTHON:-/opt/mslab-venv/bin/python}}"
 cd "$ROOT" || exit 1
-exec "$PY" -m mslab.grading.packages gradescope "$ROOT/submission" "$ROOT/source/exercises" \\
+exec "$PY" -m mslab.commands.platform_entry gradescope "$ROOT/submission" "$ROOT/source/exercises" \\
     "$ROOT/results/results.json" --isolation "${{MSLAB_ISOLATION:-rlimits}}" {exercises}
 """
 
@@ -80,7 +75,7 @@ PRAIRIELEARN_RUN = """#!/usr/bin/env bash
 ROOT="${MSLAB_GRADE_ROOT:-/grade}"
 PY="${MSLAB_PYTHON:-python3}"
 HERE="$(cd "$(dirname "$0")" && pwd)"
-exec "$PY" -m mslab.grading.packages prairielearn "$ROOT/student" "$HERE/exercises" \\
+exec "$PY" -m mslab.commands.platform_entry prairielearn "$ROOT/student" "$HERE/exercises" \\
     "$ROOT/results/results.json" --isolation "${MSLAB_ISOLATION:-rlimits}" "$@"
 """
 
@@ -224,63 +219,3 @@ def build_prairielearn(src: str | Path, dest: str | Path, only: list[str] | None
         (tmp / "info.json").write_text(json.dumps(options, indent=2) + "\n")
 
     return _build(dest, force, fill)
-
-
-def _lock(folder: Path) -> None:
-    """Make a folder tree root's only: folders 700, files 600 (the grader itself reads it)."""
-    for dirpath, _, filenames in os.walk(folder):
-        os.chmod(dirpath, 0o700)
-        for name in filenames:
-            path = os.path.join(dirpath, name)
-            if not os.path.islink(path):
-                os.chmod(path, 0o600)
-
-
-def _not_graded(fmt: str, why: str) -> dict:
-    """Return the results document of a submission the grader refused (one line saying why)."""
-    if fmt == "prairielearn":
-        return {"gradable": False, "format_errors": [why], "score": 0.0, "tests": []}
-    return {"score": 0.0, "output": f"Not graded: {why}", "tests": []}
-
-
-def entry(argv: list[str] | None = None) -> int:
-    """Grade one submission into a platform's ``results.json``; return 0 once it is written.
-
-    Arguments: ``FORMAT SUBMISSION SOURCE OUTPUT [--isolation MODE] [--exercise NAME]... [NAME]...``.
-    A submission the grader refuses (exit 2: say, no file) still gets a ``results.json``
-    saying why, so that the student sees a reason rather than a failed autograder.
-    """
-    from mslab.cli import main as cli_main
-
-    p = argparse.ArgumentParser(prog="python -m mslab.grading.packages")
-    p.add_argument("format", choices=("gradescope", "prairielearn"))
-    p.add_argument("submission")
-    p.add_argument("source")
-    p.add_argument("output")
-    p.add_argument("--isolation", default="rlimits")
-    p.add_argument("--exercise", action="append", default=[])
-    p.add_argument("names", nargs="*")
-    args = p.parse_intermixed_args(argv)
-    _lock(Path(args.source))
-    Path(args.output).parent.mkdir(parents=True, exist_ok=True)
-    cmd = ["grade", args.submission, "--source", args.source, "--isolation", args.isolation,
-           "--format", args.format, "--output", args.output]
-    for name in [*args.exercise, *args.names]:
-        cmd += ["--exercise", name]
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = cli_main(cmd)
-    # the platforms keep stdout and stderr (for the instructor, maybe shown to the student):
-    # the per-test report names hidden tests, so only the totals and the warnings go there
-    print("\n".join(line for line in out.getvalue().splitlines()
-                    if line.lstrip().startswith(("total:", "isolation:", "resources:"))))
-    sys.stderr.write(err.getvalue())
-    if code != 0:
-        lines = [line for line in err.getvalue().splitlines() if line.startswith("mslab: error:")]
-        why = lines[-1].removeprefix("mslab: error: ") if lines else f"the grader stopped (exit code {code})"
-        write_json(args.output, _not_graded(args.format, why[:300]))
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(entry())

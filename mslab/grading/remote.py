@@ -3,10 +3,9 @@
 :class:`Student` is what the instructor's tests see as the ``student`` fixture while
 grading: ``student.spring_forces(x, ...)`` sends the call to the sandbox and returns the
 decoded *data* it answered; every failure comes back as :class:`StudentError` whose kind
-the runner decided from what it saw itself, never from the sandbox's words. A test's
-limit is CPU time of the whole sandbox (its cgroup, else its process tree in /proc), with
-a generous wall-clock backstop; hitting either kills the sandbox (its whole box and
-process group) and the next test starts a fresh one.
+the runner decided from what it saw itself, never from the sandbox's words. A test's limit
+is CPU time of the whole sandbox (cgroup, else process tree in /proc) with a generous wall-clock
+backstop; hitting either kills the sandbox (box and process group); the next test starts afresh.
 """
 
 from __future__ import annotations
