@@ -1,0 +1,43 @@
+"""mslab.exercise_cells: one line for a student's cell (not done yet, right, a hint), never a traceback."""
+
+import pytest
+
+from mslab.exercise_cells import TODO, check_function, check_prediction, check_value
+
+
+def euler(f, y, h):
+    return y + h * f(y)
+
+
+def backward(f, y, h):          # a common mistake: f at the new point
+    return y + h * f(y + h * f(y))
+
+
+CASES = [(lambda y: -2.0 * y, 1.0, 0.1), (lambda y: y * y, 0.5, 0.2)]
+
+
+@pytest.mark.parametrize("fn, first, ok", [
+    (lambda f, y, h: TODO, "not done yet: replace TODO in euler_step", False),
+    (euler, "right: euler_step agrees with the reference on 2 case(s)", True),
+    (backward, "not yet right: you evaluated f at the new point", False),
+    (lambda f, y, h: y - h * f(y), "not yet right: euler_step differs from the reference", False),
+    (lambda f, y, h: 1 / 0, "not yet right: euler_step", False),
+])
+def test_check_function_says_one_line(capsys, fn, first, ok):
+    assert check_function("euler_step", fn, reference=euler, cases=CASES,
+                          mistakes={"you evaluated f at the new point": backward}) is ok
+    out = capsys.readouterr().out
+    assert out.startswith(first) and out.count("\n") == 1 and "Traceback" not in out
+
+
+def test_check_value_and_prediction(capsys):
+    assert not check_value("the local error", TODO, 0.005)
+    assert check_value("the local error", 0.005, 0.005)
+    assert not check_value("the local error", 0.05, 0.005, mistakes={"h, not h squared": 0.05})
+    assert not check_prediction(TODO, measured="grows", choices=("grows", "decays"))
+    assert check_prediction(" Grows", measured="grows", choices=("grows", "decays"))
+    assert not check_prediction("decays", measured="grows", choices=("grows", "decays"))
+    lines = capsys.readouterr().out.splitlines()
+    assert [line.split(":")[0] for line in lines] == ["not done yet", "right", "not yet right",
+                                                      "not done yet", "right", "not yet right"]
+    assert lines[2] == "not yet right: h, not h squared"
