@@ -51,22 +51,26 @@ def _is_todo(value: object) -> bool:
 
 
 def _close(a: object, b: object, rtol: float, atol: float) -> bool:
+    """Equal to the tolerances, also for nested sequences of different lengths (a tableau's A and b)."""
     try:
-        return bool(np.allclose(np.asarray(a, dtype=float), np.asarray(b, dtype=float), rtol=rtol, atol=atol))
+        a_arr, b_arr = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     except (TypeError, ValueError):
+        if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)) and len(a) == len(b):
+            return all(_close(x, y, rtol, atol) for x, y in zip(a, b, strict=True))
         return False
+    return a_arr.shape == b_arr.shape and bool(np.allclose(a_arr, b_arr, rtol=rtol, atol=atol))
 
 
-def _say(line: str) -> bool:
+def _say(line: str) -> None:
     print(line)
-    return line.startswith("right")
 
 
 def check_value(name: str, answer: object, expected: object, *, rtol: float = 1e-6, atol: float = 0.0,
-                mistakes: dict[str, object] | None = None) -> bool:
+                mistakes: dict[str, object] | None = None) -> None:
     """Print whether ``answer`` equals ``expected`` (a number or array, to ``rtol``/``atol``).
 
-    ``mistakes`` maps a one-line hint to the value a common mistake gives. Returns True when right.
+    ``mistakes`` maps a one-line hint to the value a common mistake gives. Returns None, so a
+    notebook cell ending with the call shows the one line only.
     """
     if _is_todo(answer):
         return _say(f"not done yet: replace TODO in {name} and run the cell again")
@@ -80,7 +84,7 @@ def check_value(name: str, answer: object, expected: object, *, rtol: float = 1e
 
 def check_function(name: str, fn: Callable, *, reference: Callable, cases: Sequence[tuple],
                    mistakes: dict[str, Callable] | None = None, rtol: float = 1e-10,
-                   atol: float = 1e-12) -> bool:
+                   atol: float = 1e-12) -> None:
     """Call ``fn`` and ``reference`` on every case; print one line: right, a hint, or not done yet.
 
     ``mistakes`` maps a one-line hint to a function that makes that common mistake; when the
@@ -104,7 +108,7 @@ def check_function(name: str, fn: Callable, *, reference: Callable, cases: Seque
     return _say(f"not yet right: {name} differs from the reference; compare it term by term with the formula")
 
 
-def check_prediction(guess: object, *, measured: str, choices: Sequence[str]) -> bool:
+def check_prediction(guess: object, *, measured: str, choices: Sequence[str]) -> None:
     """Print the measured outcome next to the student's prediction (one of ``choices``)."""
     if _is_todo(guess):
         return _say(f"not done yet: write your prediction (one of {', '.join(map(repr, choices))}) "

@@ -24,20 +24,30 @@ CASES = [(lambda y: -2.0 * y, 1.0, 0.1), (lambda y: y * y, 0.5, 0.2)]
     (lambda f, y, h: 1 / 0, "not yet right: euler_step", False),
 ])
 def test_check_function_says_one_line(capsys, fn, first, ok):
-    assert check_function("euler_step", fn, reference=euler, cases=CASES,
-                          mistakes={"you evaluated f at the new point": backward}) is ok
+    check_function("euler_step", fn, reference=euler, cases=CASES,
+                   mistakes={"you evaluated f at the new point": backward})
     out = capsys.readouterr().out
+    assert out.startswith("right") is ok
     assert out.startswith(first) and out.count("\n") == 1 and "Traceback" not in out
 
 
 def test_check_value_and_prediction(capsys):
-    assert not check_value("the local error", TODO, 0.005)
-    assert check_value("the local error", 0.005, 0.005)
-    assert not check_value("the local error", 0.05, 0.005, mistakes={"h, not h squared": 0.05})
-    assert not check_prediction(TODO, measured="grows", choices=("grows", "decays"))
-    assert check_prediction(" Grows", measured="grows", choices=("grows", "decays"))
-    assert not check_prediction("decays", measured="grows", choices=("grows", "decays"))
+    check_value("the local error", TODO, 0.005)
+    check_value("the local error", 0.005, 0.005)
+    check_value("the local error", 0.05, 0.005, mistakes={"h, not h squared": 0.05})
+    check_prediction(TODO, measured="grows", choices=("grows", "decays"))
+    check_prediction(" Grows", measured="grows", choices=("grows", "decays"))
+    check_prediction("decays", measured="grows", choices=("grows", "decays"))
     lines = capsys.readouterr().out.splitlines()
     assert [line.split(":")[0] for line in lines] == ["not done yet", "right", "not yet right",
                                                       "not done yet", "right", "not yet right"]
     assert lines[2] == "not yet right: h, not h squared"
+
+
+def test_check_value_compares_a_tableau_of_rows_and_weights(capsys):
+    midpoint = [[[0.0, 0.0], [0.5, 0.0]], [0.0, 1.0]]
+    heun = [[[0.0, 0.0], [1.0, 0.0]], [0.5, 0.5]]
+    check_value("the tableau", [[[0, 0], [0.5, 0]], [0, 1]], midpoint)
+    check_value("the tableau", heun, midpoint, mistakes={"that is Heun's": heun})
+    check_value("the tableau", [[[0, 0], [0.5, 0]]], midpoint)
+    assert capsys.readouterr().out.splitlines()[1] == "not yet right: that is Heun's"

@@ -113,6 +113,7 @@ VALUES = ("claim holds: [v] rk4 is faster and the energy stays bounded  "
     "The share is between 0.4 and 0.6 of the error.",
     "The drag halves the error.",                     # 0.51
     "The stiffness is hundreds of times k.",          # 178
+    "It is more than twice as accurate.",             # 14.53 (a bound on the magnitude word)
     "RK4 is faster here.",
     "The energy stays bounded.",
 ])
@@ -131,12 +132,13 @@ def test_sentences_that_their_claim_carries(tmp_path, sentence):
     ("The stiffness is tens of times k.", "'tens': no printed value in"),
     ("It is twice as accurate.", "'twice': no printed value in"),
     ("It is several times as accurate.", "'several': no printed value in"),
+    ("It is less than half as accurate.", "'half': no printed value in"),
     ("RK4 is slower here.", "'slower' is in no claim's statement"),
     ("Only RK4 is accurate.", "'Only' is in no claim's statement"),
 ])
 def test_sentences_that_their_claim_contradicts(tmp_path, sentence, problem):
     few = "claim holds: [v] rk4 is faster  (k_times = 178, share = 0.70)\n"
-    output = few if re.search("times|twice", sentence) and "$" not in sentence else VALUES
+    output = few if re.search("times|twice|half", sentence) and "$" not in sentence else VALUES
     found = findings(tmp_path, [f"{sentence} <!-- claim: v -->"], output=output)
     assert len(found) == 1 and problem in found[0], found
 
@@ -175,3 +177,9 @@ def test_a_claim_made_false_fails_nbval(tmp_path):
     result = _nbval(path)
     assert result.returncode != 0
     assert "ClaimError" in result.stdout and "claim false: [quarter]" in result.stdout
+
+
+def test_a_folded_solution_is_not_checked(tmp_path):
+    md = "Derive it. <!-- no-claim: question -->\n\n<details><summary>Solution</summary>\n\nIt is 42.\n</details>"
+    assert findings(tmp_path, [md]) == []
+    assert findings(tmp_path, ["It is 42.\n\n" + md]) == ["It is 42."]

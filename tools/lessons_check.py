@@ -37,7 +37,8 @@ very start of a paragraph, block quote or list item covers that whole block:
   pointer, derivation-above, convention, outline, question, theorem) and the words never name
   a claim.
 
-A claim ID that no cell defines, or whose stored output does not show it holding, is listed.
+A folded solution (``<details>...</details>``, the worked answer of a pen-and-paper task) is
+not checked. A claim ID that no cell defines, or whose stored output does not show it holding, is listed.
 """
 
 from __future__ import annotations
@@ -102,6 +103,7 @@ BELOW = re.compile(r"(?:less than|fewer than|below|under|at most|within|up to|no
                    r"[<≤])\s*$", re.IGNORECASE)
 ABOUT = re.compile(r"(?:about|around|roughly|approximately|nearly|almost|close to|some|~|≈)\s*$",
                    re.IGNORECASE)
+DETAILS = re.compile(r"<details>.*?</details>", re.DOTALL)     # a folded solution of a task
 RANGE_JOIN = re.compile(r"\s*(?:[-–]|to)\s*$")
 
 
@@ -237,6 +239,11 @@ def disagreements(numeric: str, claims: list[Printed]) -> list[str]:
             problems.append(f"{label.strip()}: no printed value fits")
     for pattern, ranges in MAGNITUDE:
         for m in pattern.finditer(numeric):
+            before = numeric[:m.start()]
+            if ABOVE.search(before):                  # "more than twice": above the range's lower end
+                ranges = tuple((lo, float("inf")) for lo, _ in ranges[:1])
+            elif BELOW.search(before):                # "less than half": below its upper end
+                ranges = tuple((0.0, hi) for _, hi in ranges[-1:])
             if not any(fits("magnitude", None, r, values) for r in ranges):
                 problems.append(f"'{m.group(0)}': no printed value in {ranges}")
     for m in VERDICT.finditer(numeric):
@@ -275,8 +282,11 @@ def check_markdown(path: Path, index: int, text: str, defined: set[str],
                 elif cid not in holding:
                     found.append(Finding(path, index, f"claim {cid!r} has no stored 'claim holds' output"))
     blank, numeric = views(text)
+    solutions = [m.span() for m in DETAILS.finditer(text)]
     for b0, b1, lead in _blocks(text):
         for s0, s1 in _sentences(text, blank, b0, b1):
+            if any(a <= s0 < b for a, b in solutions):
+                continue
             comments = list(COMMENT.finditer(text, s0, s1)) or list(COMMENT.finditer(lead or ""))
             sentence = " ".join(text[s0:s1].split())
             if not comments:
