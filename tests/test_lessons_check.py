@@ -180,6 +180,7 @@ def test_a_claim_made_false_fails_nbval(tmp_path):
 
 
 def test_a_folded_solution_is_not_checked(tmp_path):
-    md = "Derive it. <!-- no-claim: question -->\n\n<details><summary>Solution</summary>\n\nIt is 42.\n</details>"
+    md = ("Derive it. <!-- no-claim: question -->\n\n"
+          "<details><summary>Solution</summary>\n\nIt is 42.\n</details>")
     assert findings(tmp_path, [md]) == []
     assert findings(tmp_path, ["It is 42.\n\n" + md]) == ["It is 42."]
