@@ -160,8 +160,10 @@ def views(text: str) -> tuple[str, str]:
     code = text
     for pattern in MASKS[:3]:
         code = pattern.sub(_fill, code)
+    headings = [h.span() for h in MASKS[6].finditer(code)]
     for m in MATH.finditer(code):
-        numeric[m.start():m.end()] = list(_math_view(m.group(0)))
+        if not any(a <= m.start() < b for a, b in headings):
+            numeric[m.start():m.end()] = list(_math_view(m.group(0)))
     return blank, "".join(numeric).replace(FILL, " ")
 
 
