@@ -184,3 +184,27 @@ def test_a_folded_solution_is_not_checked(tmp_path):
           "<details><summary>Solution</summary>\n\nIt is 42.\n</details>")
     assert findings(tmp_path, [md]) == []
     assert findings(tmp_path, ["It is 42.\n\n" + md]) == ["It is 42."]
+
+
+MUTATIONS = [   # (lesson, text of a backed sentence, the same text made wrong, what the checker must say)
+    ("00_mass_spring_systems.ipynb", "drag has removed more than 2.5 J", "drag has removed more than 25 J",
+     "above 25: no printed value fits"),
+    ("04_implicit_euler.ipynb", "vibrate at hundreds of radians per second",
+     "vibrate at thousands of radians per second", "'thousands': no printed value in"),
+    ("02_heun_midpoint_rk4.ipynb", "per unit of work the higher order wins",
+     "per unit of work the lower order wins", "'lower' is in no claim's statement"),
+]
+
+
+@pytest.mark.parametrize("lesson, right, wrong, problem", MUTATIONS)
+def test_a_wrong_number_magnitude_or_comparative_in_a_lesson_is_caught(tmp_path, lesson, right, wrong,
+                                                                       problem):
+    """A number, a magnitude word and a comparative edited in three real lessons: each is listed."""
+    nb = nbformat.read(ROOT / "lessons" / lesson, as_version=4)
+    assert lessons_check.check_notebook(ROOT / "lessons" / lesson) == []
+    cells = [c for c in nb.cells if c.cell_type == "markdown" and right in c.source]
+    assert len(cells) == 1
+    cells[0].source = cells[0].source.replace(right, wrong)
+    nbformat.write(nb, tmp_path / lesson)
+    found = [str(f) for f in lessons_check.check_notebook(tmp_path / lesson)]
+    assert len(found) == 1 and wrong in found[0] and problem in found[0], found
