@@ -145,13 +145,24 @@ def _half_ulp(mantissa: str, exponent: int = 0) -> float:
     return 0.5 * 10.0 ** (exponent - decimals)
 
 
+_TIMES_ROOT = re.compile(r"(?<![\w.])(\d+)\s*(?:\\sqrt\s*\{?\s*|√)(\d+)\}?")
+
+
 def normalise(text: str) -> str:
-    """``text`` with ``a × 10^b`` and ``10⁻⁶`` written as ``aeb`` (padded to equal length)."""
+    r"""Write ``a × 10^b`` and ``10⁻⁶`` as ``aeb``, ``2\sqrt 2`` as ``2.828...``.
+
+    To the digits that fit: padded or cut to the original length, so offsets stay.
+    """
     def sub(m: re.Match) -> str:
         exp = (m.group(2) or m.group(3) or "").translate(_SUPER).replace("−", "-")
         new = f"{m.group(1) or '1'}e{exp}"
         return new + " " * max(0, len(m.group(0)) - len(new))
-    return _TIMES_TEN.sub(sub, text)
+
+    def root(m: re.Match) -> str:
+        value = float(m.group(1)) * math.sqrt(float(m.group(2)))
+        digits = max(1, len(m.group(0)) - len(str(int(value))) - 1)
+        return f"{value:.{digits}f}".ljust(len(m.group(0)))
+    return _TIMES_ROOT.sub(root, _TIMES_TEN.sub(sub, text))
 
 
 def numbers_in(text: str) -> list[Number]:

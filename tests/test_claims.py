@@ -40,3 +40,7 @@ def test_a_number_fits_its_printed_value_to_its_own_digits_only():
     assert not fits("equal", n146, None, values)
     assert fits("magnitude", None, (10.0, 99.0), values)
     assert not fits("magnitude", None, (100.0, 999.0), values)
+
+
+def test_a_multiple_of_a_root_is_one_number():
+    assert [round(n.value, 6) for n in numbers_in(r"RK4 reaches $2\sqrt 2$, i.e. 2√2")] == [2.828427, 2.8]

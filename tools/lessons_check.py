@@ -219,6 +219,7 @@ def _root(word: str) -> str:
 
 def disagreements(numeric: str, claims: list[Printed]) -> list[str]:
     """What of one sentence (its numeric view) the printed claims do not carry."""
+    numeric = normalise(numeric)
     values = tuple(v for p in claims for v in p.values)
     statements = " ".join(p.statement.lower() for p in claims)
     problems, numbers, used = [], numbers_in(numeric), set()
