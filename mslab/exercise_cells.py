@@ -53,7 +53,7 @@ def _is_todo(value: object) -> bool:
 def _close(a: object, b: object, rtol: float, atol: float) -> bool:
     """Equal to the tolerances, also for nested sequences of different lengths (a tableau's A and b)."""
     try:
-        a_arr, b_arr = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+        a_arr, b_arr = np.asarray(a, dtype=complex), np.asarray(b, dtype=complex)
     except (TypeError, ValueError):
         if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)) and len(a) == len(b):
             return all(_close(x, y, rtol, atol) for x, y in zip(a, b, strict=True))

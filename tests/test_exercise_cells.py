@@ -51,3 +51,12 @@ def test_check_value_compares_a_tableau_of_rows_and_weights(capsys):
     check_value("the tableau", heun, midpoint, mistakes={"that is Heun's": heun})
     check_value("the tableau", [[[0, 0], [0.5, 0]]], midpoint)
     assert capsys.readouterr().out.splitlines()[1] == "not yet right: that is Heun's"
+
+
+def test_complex_answers_are_compared(capsys):
+    check_function("R", lambda z: 1 / (1 - z), reference=lambda z: complex(1 / (1 - z)),
+                   cases=[(2j,), (-0.5 + 0j,)], mistakes={"forward Euler's": lambda z: 1 + z})
+    check_function("R", lambda z: 1 + z, reference=lambda z: 1 / (1 - z), cases=[(2j,), (-0.5 + 0j,)],
+                   mistakes={"forward Euler's": lambda z: 1 + z})
+    assert capsys.readouterr().out.splitlines() == ["right: R agrees with the reference on 2 case(s)",
+                                                    "not yet right: forward Euler's"]
