@@ -1,5 +1,9 @@
 """mslab.exercise_cells: one line for a student's cell (not done yet, right, a hint), never a traceback."""
 
+import re
+from pathlib import Path
+
+import nbformat
 import pytest
 
 from mslab.exercise_cells import TODO, check_function, check_prediction, check_value
@@ -60,3 +64,29 @@ def test_complex_answers_are_compared(capsys):
                    mistakes={"forward Euler's": lambda z: 1 + z})
     assert capsys.readouterr().out.splitlines() == ["right: R agrees with the reference on 2 case(s)",
                                                     "not yet right: forward Euler's"]
+
+
+LESSONS = sorted((Path(__file__).resolve().parents[1] / "lessons").glob("0[0-5]_*.ipynb"))
+
+
+@pytest.mark.parametrize("path", LESSONS, ids=[p.stem for p in LESSONS])
+def test_each_lesson_has_a_prediction_a_cell_to_complete_and_a_folded_derivation(path):
+    """Stored unsolved: the student's TODO and the check's 'not done yet' line, never a solution."""
+    nb = nbformat.read(path, as_version=4)
+    markdown = "\n".join(c.source for c in nb.cells if c.cell_type == "markdown")
+    code = [c for c in nb.cells if c.cell_type == "code"]
+    shown = ["".join(o.get("text", "") for o in c.outputs) for c in code]
+    assert "**Predict, then run.**" in markdown
+    assert "**Complete a cell.**" in markdown or "**In code.**" in markdown
+    assert re.search(r"<details><summary>Solution.*?</details>", markdown, re.DOTALL)
+    assert sum("not done yet: write your prediction" in s for s in shown) >= 1
+    assert sum(s.startswith("not done yet: replace TODO") for s in shown) >= 1
+    assert not any(s.startswith("right:") for s in shown)
+
+
+@pytest.mark.parametrize("path", LESSONS, ids=[p.stem for p in LESSONS])
+def test_no_widget_draws_while_it_is_built(path):
+    """interactive() runs its function at construction: in a headless nbclient run that cell waited for
+    the whole cell timeout (lesson 01, 60 s). Sliders draw on change instead."""
+    nb = nbformat.read(path, as_version=4)
+    assert not any("widgets.interactive(" in c.source for c in nb.cells if c.cell_type == "code")
