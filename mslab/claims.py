@@ -145,12 +145,18 @@ def _half_ulp(mantissa: str, exponent: int = 0) -> float:
     return 0.5 * 10.0 ** (exponent - decimals)
 
 
+_WORDS = {"two": 2, "three": 3, "four": 4, "five": 5, "six": 6, "seven": 7, "eight": 8, "nine": 9, "ten": 10,
+          "eleven": 11, "twelve": 12, "twenty": 20, "fifty": 50, "hundred": 100}
+#: a number written as a word counts where it is a factor: "seven times", "threefold", "a factor of three"
+_FACTOR_WORD = re.compile(rf"(?<=factor of )({'|'.join(_WORDS)})\b|\b({'|'.join(_WORDS)})(?=-? ?(?:times\b|fold\b)|- to)",
+                          re.IGNORECASE)
 _TIMES_ROOT = re.compile(r"(?<![\w.])(\d+)\s*(?:\\sqrt\s*\{?\s*|√)(\d+)\}?")
 
 
 def normalise(text: str) -> str:
     r"""Write ``a × 10^b`` and ``10⁻⁶`` as ``aeb``, ``2\sqrt 2`` as ``2.828...``.
 
+    A number word that is a factor ("seven times", "threefold", "a factor of three") becomes its digits.
     To the digits that fit: padded or cut to the original length, so offsets stay.
     """
     def sub(m: re.Match) -> str:
@@ -162,7 +168,11 @@ def normalise(text: str) -> str:
         value = float(m.group(1)) * math.sqrt(float(m.group(2)))
         digits = max(1, len(m.group(0)) - len(str(int(value))) - 1)
         return f"{value:.{digits}f}".ljust(len(m.group(0)))
-    return _TIMES_ROOT.sub(root, _TIMES_TEN.sub(sub, text))
+    def word(m: re.Match) -> str:
+        if m.group(0).lower() in ("two", "three", "four") and re.match(r"-?fold", m.string[m.end():]):
+            return m.group(0)                                 # twofold ... fourfold: magnitude words
+        return str(_WORDS[m.group(0).lower()]).ljust(len(m.group(0)))
+    return _FACTOR_WORD.sub(word, _TIMES_ROOT.sub(root, _TIMES_TEN.sub(sub, text)))
 
 
 def numbers_in(text: str) -> list[Number]:

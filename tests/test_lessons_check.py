@@ -114,6 +114,8 @@ VALUES = ("claim holds: [v] rk4 is faster and the energy stays bounded  "
     "The drag halves the error.",                     # 0.51
     "The stiffness is hundreds of times k.",          # 178
     "It is more than twice as accurate.",             # 14.53 (a bound on the magnitude word)
+    "It is more than seven times as accurate.",       # a number word that is a factor
+    "The spread is a factor of ten or more.",         # "or more": a bound after the number
     "RK4 is faster here.",
     "The energy stays bounded.",
 ])
@@ -133,6 +135,7 @@ def test_sentences_that_their_claim_carries(tmp_path, sentence):
     ("It is twice as accurate.", "'twice': no printed value in"),
     ("It is several times as accurate.", "'several': no printed value in"),
     ("It is less than half as accurate.", "'half': no printed value in"),
+    ("It is seven times as accurate.", "7: no printed value fits"),
     ("RK4 is slower here.", "'slower' is in no claim's statement"),
     ("Only RK4 is accurate.", "'Only' is in no claim's statement"),
 ])

@@ -25,8 +25,9 @@ very start of a paragraph, block quote or list item covers that whole block:
     "14.53"; the two roundings overlap), or is bounded by one: "more than / over / above /
     at least 70" needs a printed value above 70, "below / under / less than / within / up to
     1e-6" one below, "about / roughly / nearly / ~ 30" one within 10 %, "30-50", "3 to 5",
-    "between 3 and 5" one inside (relations inside ``$...$`` likewise: ``<``, ``\\le``,
-    ``\\approx``);
+    "between 3 and 5" one inside, "10 or more" one at least 10 (relations inside ``$...$``
+    likewise: ``<``, ``\\le``, ``\\approx``); a number word counts where it is a factor
+    ("seven times", "tenfold", "a factor of three"), other number words are not compared;
   - every magnitude word ("several", "tens", "twice", "halves", ...) has a printed value in
     its range, written once in ``mslab.claims.MAGNITUDES``;
   - every verdict word ("faster", "only", "never", "same", "bounded", ...) appears in the
@@ -104,6 +105,8 @@ BELOW = re.compile(r"(?:less than|fewer than|below|under|at most|within|up to|no
 ABOUT = re.compile(r"(?:about|around|roughly|approximately|nearly|almost|close to|some|~|≈)\s*$",
                    re.IGNORECASE)
 DETAILS = re.compile(r"<details>.*?</details>", re.DOTALL)     # a folded solution of a task
+OR_MORE = re.compile(r"\s*(?:or more|or above|or larger|and more|\+)\b", re.IGNORECASE)
+OR_LESS = re.compile(r"\s*(?:or less|or fewer|or below|or smaller)\b", re.IGNORECASE)
 RANGE_JOIN = re.compile(r"\s*(?:[-–]|to)\s*$")
 
 
@@ -235,8 +238,10 @@ def disagreements(numeric: str, claims: list[Printed]) -> list[str]:
             ok = fits("range", None, (n.value - n.half_ulp, nxt.value + nxt.half_ulp), values)
             label = f"{n.text}-{nxt.text}"
         else:
-            kind = ("above" if ABOVE.search(before) else "below" if BELOW.search(before)
-                    else "about" if ABOUT.search(before) else "equal")
+            after = numeric[n.end:n.end + 20]
+            kind = ("above" if ABOVE.search(before) or OR_MORE.match(after) else
+                    "below" if BELOW.search(before) or OR_LESS.match(after) else
+                    "about" if ABOUT.search(before) else "equal")
             ok, label = fits(kind, n, None, values), (n.text if kind == "equal" else f"{kind} {n.text}")
         if not ok:
             problems.append(f"{label.strip()}: no printed value fits")
