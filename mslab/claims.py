@@ -148,8 +148,8 @@ def _half_ulp(mantissa: str, exponent: int = 0) -> float:
 _WORDS = {"two": 2, "three": 3, "four": 4, "five": 5, "six": 6, "seven": 7, "eight": 8, "nine": 9, "ten": 10,
           "eleven": 11, "twelve": 12, "twenty": 20, "fifty": 50, "hundred": 100}
 #: a number written as a word counts where it is a factor: "seven times", "threefold", "a factor of three"
-_FACTOR_WORD = re.compile(rf"(?<=factor of )({'|'.join(_WORDS)})\b|\b({'|'.join(_WORDS)})(?=-? ?(?:times\b|fold\b)|- to)",
-                          re.IGNORECASE)
+_WORD = "|".join(_WORDS)
+_FACTOR_WORD = re.compile(rf"(?<=factor of )({_WORD})\b|\b({_WORD})(?=-? ?(?:times\b|fold\b)|- to)", re.IGNORECASE)
 _TIMES_ROOT = re.compile(r"(?<![\w.])(\d+)\s*(?:\\sqrt\s*\{?\s*|√)(\d+)\}?")
 
 
