@@ -149,7 +149,8 @@ _WORDS = {"two": 2, "three": 3, "four": 4, "five": 5, "six": 6, "seven": 7, "eig
           "eleven": 11, "twelve": 12, "twenty": 20, "fifty": 50, "hundred": 100}
 #: a number written as a word counts where it is a factor: "seven times", "threefold", "a factor of three"
 _WORD = "|".join(_WORDS)
-_FACTOR_WORD = re.compile(rf"(?<=factor of )({_WORD})\b|\b({_WORD})(?=-? ?(?:times\b|fold\b)|- to)", re.IGNORECASE)
+_FACTOR_WORD = re.compile(rf"(?<=factor of )({_WORD})\b|\b({_WORD})(?=-? ?(?:times\b|fold\b)|- to)",
+                          re.IGNORECASE)
 _TIMES_ROOT = re.compile(r"(?<![\w.])(\d+)\s*(?:\\sqrt\s*\{?\s*|√)(\d+)\}?")
 
 
