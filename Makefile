@@ -87,11 +87,13 @@ lessons-check: $(STAMP)
 LAB_ROOT ?= $(CURDIR)
 LAB_RC ?= $(VENV)/lab.bashrc
 LAB_ARGS ?=
+# as root (a container, a lab image) JupyterLab refuses to start without --allow-root: given then
+LAB_ROOT_FLAG := $(if $(filter 0,$(shell id -u)),--allow-root)
 lab: $(STAMP)
 	printf '[ -f ~/.bashrc ] && . ~/.bashrc\n. "%s/bin/activate"\n' "$(abspath $(VENV))" > $(LAB_RC)
 	PATH="$(abspath $(VENV))/bin:$$PATH" VIRTUAL_ENV="$(abspath $(VENV))" $(VENV)/bin/jupyter lab \
 	    --ServerApp.root_dir="$(LAB_ROOT)" --LabApp.default_url=/lab/tree/lessons \
-	    --ServerApp.terminado_settings=shell_command="bash --rcfile $(abspath $(LAB_RC))" $(LAB_ARGS)
+	    --ServerApp.terminado_settings=shell_command="bash --rcfile $(abspath $(LAB_RC))" $(LAB_ROOT_FLAG) $(LAB_ARGS)
 
 # re-execute every lesson in place (stored outputs then match the library; nbval checks them)
 lessons: $(STAMP)

@@ -128,7 +128,8 @@ def lab(tools, tmp_path_factory):
     args = ["--ServerApp.open_browser=False", "--ServerApp.ip=127.0.0.1", f"--ServerApp.port={port}",
             "--ServerApp.port_retries=0", f"--IdentityProvider.token={token}",
             "--LabApp.expose_app_in_browser=True", "--LabApp.news_url=None",
-            "--LabApp.check_for_updates_class=jupyterlab.NeverCheckForUpdate", "--allow-root"]
+            "--LabApp.check_for_updates_class=jupyterlab.NeverCheckForUpdate"]  # as root: `make lab` adds
+    # --allow-root itself (issue 39: a newcomer's `make lab` as root stopped)
     proc = subprocess.Popen(
         ["make", "-s", "-C", str(ROOT), "lab", f"VENV={venv}", "STAMP=", f"LAB_ROOT={root}",
          f"LAB_RC={home / 'lab.bashrc'}", f"LAB_ARGS={' '.join(args)}"],
