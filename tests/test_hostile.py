@@ -125,6 +125,21 @@ def test_out_that_is_a_file_is_refused_before_the_run(tmp_path, monkeypatch, cap
     assert f"{target} is a file, so the folder {target / 'sub'} cannot be made" in line
 
 
+def test_validate_refuses_an_out_it_could_not_save_to_before_any_work(tmp_path, monkeypatch, capsys):
+    """`validate --out` checks the folder first, as `run` does (issue 37): it used to check every scene
+    (timed steps included) and only then fail at saving."""
+    import mslab.commands.validate
+
+    _tripwire(monkeypatch)
+    monkeypatch.setattr(mslab.commands.validate, "check", lambda *a, **k: (_ for _ in ()).throw(
+        AssertionError("a scene was checked")))
+    target = tmp_path / "results"
+    target.write_text("not a folder")
+    assert "--out: " in _one_line(capsys, ["validate", "pendulum", "--out", str(target)])
+    line = _one_line(capsys, ["validate", "pendulum", "--out", str(target / "sub")])
+    assert f"{target} is a file, so the folder {target / 'sub'} cannot be made" in line
+
+
 def test_out_that_cannot_be_written_is_refused_before_the_run(tmp_path, monkeypatch, capsys):
     """A read-only mount, simulated where the test runs as root (permissions do not stop root)."""
     import tempfile

@@ -17,6 +17,7 @@ import sys
 from typing import TYPE_CHECKING
 
 from mslab.commands.common import (
+    CommandError,
     add_budget_option,
     add_common_options,
     add_settings_options,
@@ -117,6 +118,13 @@ def run(args: argparse.Namespace) -> int:
     from mslab.commands.common import write_json
 
     budget, budget_name = memory_budget(args)
+    folder = out_path(args)
+    if folder is not None:  # before any work, as `mslab run` does: the outputs could not be saved
+        from mslab.files import output_problem
+
+        problem = output_problem(folder)
+        if problem:
+            raise CommandError(problem, key="--out")
     results = []
     for name in args.files:
         overrides = {"method": args.method, "dt": args.dt, "t_end": args.t_end, "save_every": args.save_every}
@@ -131,7 +139,6 @@ def run(args: argparse.Namespace) -> int:
         else:
             print(f"mslab: error: {record['error']}", file=sys.stderr)
     doc = {"files": results, "ok": all(r["ok"] for r in results)}
-    folder = out_path(args)
     if folder is not None:
         path = write_json(folder / "validate.json", doc)
         if not args.json:
