@@ -14,6 +14,7 @@ the energy error and reads as bounded.
 
 from __future__ import annotations
 
+import sys
 from typing import TYPE_CHECKING
 
 from mslab.commands.common import (
@@ -28,6 +29,7 @@ from mslab.commands.common import (
     table,
     write_json,
 )
+from mslab.interrupts import EXIT_INTERRUPTED
 
 if TYPE_CHECKING:
     import argparse
@@ -58,6 +60,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run ``mslab compare`` with the parsed ``args``; return the exit code."""
     from mslab.precision import energy_drift
+    from mslab.precision.drift import DriftInterrupted
     from mslab.simulate import step_count
 
     scene = resolve_scene(args.scene)
@@ -71,7 +74,10 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as err:
         raise CommandError(str(err), key="--dt") from None
     methods = method_list(args.methods)
-    drifts = energy_drift(scene, methods, dt, t_end, progress=None)  # a bar by the clock, per method
+    try:
+        drifts, stopped = energy_drift(scene, methods, dt, t_end, progress=None), False  # a bar by the clock
+    except DriftInterrupted as stop:  # Ctrl-C: the methods already finished are kept (and written)
+        drifts, stopped = stop.finished, True
     records = [d.as_record() for d in drifts.values()]
     figures = []
     folder = out_dir(args)
@@ -80,9 +86,14 @@ def run(args: argparse.Namespace) -> int:
     doc = {"scene": scene.name, "dt": dt, "t_end": t_end, "methods": records, "figures": figures}
     if folder is not None:
         write_json(folder / "compare.json", doc)
+    if stopped:
+        kept = ", ".join(drifts) or "none"
+        written = f"; written to {folder}" if folder is not None else " (nothing written: no --out)"
+        print(f"mslab: interrupted after {len(drifts)} of {len(methods)} methods (kept: {kept}){written}",
+              file=sys.stderr)
     if args.json:
         emit_json(doc)
-        return 0
+        return EXIT_INTERRUPTED if stopped else 0
     rows = []
     for r in records:
         rows.append([r["method"], r["steps"], r["n_force"], fmt(r["wall_time"], ".3g"),
@@ -98,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
             say(args, f"  {r['method']}: {r['failure']}")
     for f in figures:
         say(args, f"wrote {f}")
-    return 0
+    return EXIT_INTERRUPTED if stopped else 0
 
 
 def verdict_text(record: dict, dt: float) -> str:

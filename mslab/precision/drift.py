@@ -141,6 +141,14 @@ def drift_verdict(t: np.ndarray, error: np.ndarray, *, trend_limit: float = DRIF
     return out
 
 
+class DriftInterrupted(KeyboardInterrupt):
+    """Ctrl-C during :func:`energy_drift`: ``.finished`` holds the methods already done."""
+
+    def __init__(self, finished: dict):
+        super().__init__("interrupted")
+        self.finished = finished
+
+
 def energy_drift(scene: Scene, methods: Sequence[str | Integrator], dt: float | None = None,
                  t_end: float | None = None, *, n_save: int = 2000,
                  trend_limit: float = DRIFT_TREND, growth_limit: float = DRIFT_GROWTH,
@@ -177,8 +185,6 @@ def energy_drift(scene: Scene, methods: Sequence[str | Integrator], dt: float | 
         gets ``complete = False`` and the verdict "drifting"; one whose implicit iteration
         fails gets the verdict "no convergence".
     """
-    from mslab.simulate import simulate
-
     dt = float(scene.settings.dt if dt is None else dt)
     t_end = float(scene.settings.t_end if t_end is None else t_end)
     steps = step_count(t_end, dt)
@@ -189,33 +195,47 @@ def energy_drift(scene: Scene, methods: Sequence[str | Integrator], dt: float | 
     out = {}
     try:
         for i, m in enumerate(names):
-            failure = kind = None
-            if hasattr(bar, "describe"):  # the current method, on the bar
-                bar.describe(f"{m} ({i + 1}/{len(names)})")
-            done = getattr(bar, "n", 0)
-            try:
-                with warnings.catch_warnings():  # the verdict says it
-                    warnings.simplefilter("ignore", StabilityWarning)
-                    if warm_up and steps > 20:  # compiled kernels, caches: out of the wall time
-                        try:
-                            simulate(scene, m, dt, 10 * dt, progress=False, backend=backends[m])
-                        except InstabilityError:
-                            pass
-                    traj = simulate(scene, m, dt, t_end, save_every=_save_every(steps, n_save),
-                                    progress=bar if bar is not None else False, backend=backends[m])
-            except ConvergenceError as err:  # not an energy behaviour: the iteration failed
-                traj, failure, kind = err.trajectory, str(err), "no convergence"
-            except InstabilityError as err:
-                traj, failure, kind = err.trajectory, str(err), "blew up"
-            error = traj.energy.relative_drift() if traj.t.size else np.zeros(0)
-            rule = drift_verdict(traj.t, error, trend_limit=trend_limit, growth_limit=growth_limit)
-            verdict = {None: rule["verdict"], "blew up": "drifting"}.get(kind, kind)
-            out[m] = Drift(m, traj.t, error, rule["drift_rate"], rule["trend"], rule["early"], rule["late"],
-                           verdict, traj.stats.steps, traj.stats.n_force, traj.stats.wall_time,
-                           failure is None, failure, kind)
-            if bar is not None and hasattr(bar, "n"):
-                bar.update(done + steps - bar.n)  # a run that stopped early: skip its remaining steps
+            if not _drift_of(scene, m, i, names, dt, t_end, steps, backends[m], bar, warm_up, n_save,
+                             trend_limit, growth_limit, out):
+                raise DriftInterrupted(out)
     finally:
         if owned:
             bar.close()
     return out
+
+
+def _drift_of(scene: Scene, m: str, i: int, names: list[str], dt: float, t_end: float, steps: int,
+              backend: str, bar: object, warm_up: bool, n_save: int, trend_limit: float,
+              growth_limit: float, out: dict) -> bool:
+    """Run method ``m`` into ``out[m]``; False on Ctrl-C (``out`` keeps the methods finished before)."""
+    from mslab.simulate import simulate
+
+    failure = kind = None
+    if hasattr(bar, "describe"):  # the current method, on the bar
+        bar.describe(f"{m} ({i + 1}/{len(names)})")
+    done = getattr(bar, "n", 0)
+    try:
+        with warnings.catch_warnings():  # the verdict says it
+            warnings.simplefilter("ignore", StabilityWarning)
+            if warm_up and steps > 20:  # compiled kernels, caches: out of the wall time
+                try:
+                    simulate(scene, m, dt, 10 * dt, progress=False, backend=backend)
+                except InstabilityError:
+                    pass
+            traj = simulate(scene, m, dt, t_end, save_every=_save_every(steps, n_save),
+                            progress=bar if bar is not None else False, backend=backend)
+    except KeyboardInterrupt:
+        return False
+    except ConvergenceError as err:  # not an energy behaviour: the iteration failed
+        traj, failure, kind = err.trajectory, str(err), "no convergence"
+    except InstabilityError as err:
+        traj, failure, kind = err.trajectory, str(err), "blew up"
+    error = traj.energy.relative_drift() if traj.t.size else np.zeros(0)
+    rule = drift_verdict(traj.t, error, trend_limit=trend_limit, growth_limit=growth_limit)
+    verdict = {None: rule["verdict"], "blew up": "drifting"}.get(kind, kind)
+    out[m] = Drift(m, traj.t, error, rule["drift_rate"], rule["trend"], rule["early"], rule["late"],
+                   verdict, traj.stats.steps, traj.stats.n_force, traj.stats.wall_time,
+                   failure is None, failure, kind)
+    if bar is not None and hasattr(bar, "n"):
+        bar.update(done + steps - bar.n)  # a run that stopped early: skip its remaining steps
+    return True
