@@ -118,3 +118,27 @@ def check_prediction(guess: object, *, measured: str, choices: Sequence[str]) ->
     if str(guess).strip().lower() == measured:
         return _say(f"right: you predicted {measured!r}, and that is what the run shows")
     return _say(f"not yet right: you predicted {guess!r}; the run shows {measured!r}: why?")
+
+
+def explorer(draw: Callable, *controls: object) -> object:
+    """Return controls above an output, redrawn by ``draw(*values)`` whenever a control moves.
+
+    Building it draws nothing, so a headless run (nbval, nbclient) never waits on it; the box
+    carries the CSS class of ``ipywidgets.interactive`` (``widget-interact``), which it replaces
+    (``display(interactive(...))`` ran ``draw`` at once inside its output and held a headless
+    run for the whole cell timeout).
+    """
+    import ipywidgets as widgets
+
+    view = widgets.Output()
+
+    def redraw(change: object = None) -> None:
+        with view:
+            view.clear_output(wait=True)
+            draw(*(c.value for c in controls))
+
+    for c in controls:
+        c.observe(redraw, "value")
+    box = widgets.VBox([widgets.HBox(list(controls)), view])
+    box.add_class("widget-interact")
+    return box
