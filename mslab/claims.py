@@ -1,27 +1,35 @@
 """Claims of the lessons' prose, computed and asserted where they are made.
 
-A lesson states what holds with margin ("halving h shrinks the band by about four") and backs
-the sentence with a code cell that computes it::
+A lesson states what holds with margin and backs the sentence with a code cell that computes
+it and prints the values the sentence quotes::
 
     from mslab.claims import claim
-    claim("halving h shrinks leapfrog's band by about 2^2", 3.0 < ratio < 5.0, ratio=f"{ratio:.1f}")
+    claim("halving h shrinks leapfrog's band about fourfold", 3.6 < ratio < 4.4, id="band",
+          ratio=f"{ratio:.1f}")
 
-The cell prints the statement with the numbers it rests on; when the statement is false the
-cell fails (``ClaimError``), so nbval catches prose that a change of the library made wrong.
-Numbers are printed as given: pass strings formatted to the digits the statement needs (a
-float is printed with three significant digits), so the stored output does not depend on
-round-off.
+The cell prints the statement with its values; when the statement is false the cell fails
+(``ClaimError``), so nbval catches prose that a change of the library made wrong. Print
+numbers as strings formatted to the digits the sentence quotes (a float is printed with three
+significant digits), so the stored output does not depend on round-off.
 
-Each claim may carry an ``id``; a markdown sentence names it with an invisible HTML comment
-``<!-- claim: ID -->`` and ``tools/lessons_check.py`` lists the sentences with numbers or
-verdict words that no claim backs.
+A markdown sentence names a claim with an invisible ``<!-- claim: ID -->`` and
+``tools/lessons_check.py`` compares the sentence with the claim's stored output: every number
+of the sentence (``$...$`` included) must be one of the claim's printed values (or be bounded by
+them: "more than 70", "about 30 %", "3-5"), every magnitude word (``MAGNITUDES``: "several",
+"tens", "twice", ...) must fit one of them, and every verdict word (``VERDICTS``: "faster",
+"only", "never", ...) must appear in the claim's statement. This module holds those meanings,
+written once, and the number reading both sides share.
 """
 
 from __future__ import annotations
 
+import math
+import re
+from dataclasses import dataclass
 from numbers import Integral, Real
 
-__all__ = ["ClaimError", "claim"]
+__all__ = ["ClaimError", "claim", "MAGNITUDES", "VERDICTS", "NO_CLAIM_REASONS", "Number",
+           "numbers_in", "normalise", "Printed", "parse_printed", "fits"]
 
 
 class ClaimError(AssertionError):
@@ -42,14 +50,16 @@ def claim(statement: str, holds: bool, *, id: str | None = None, **numbers: obje
     Parameters
     ----------
     statement : str
-        The sentence of the prose, as the student reads it.
+        The sentence of the prose, as the student reads it; it must contain the verdict words
+        ("faster", "only", ...) of the markdown sentences that name it.
     holds : bool
         Its computed truth value (a numpy bool is accepted).
     id : str, optional
         The name that the markdown's ``<!-- claim: ID -->`` comment uses.
     **numbers
         The values the statement rests on, printed as ``name = value`` (strings as given,
-        floats to three significant digits).
+        floats to three significant digits); every number of the markdown sentence is compared
+        with these.
     """
     shown = ", ".join(f"{name} = {_show(value)}" for name, value in numbers.items())
     tag = f"[{id}] " if id else ""
@@ -57,3 +67,180 @@ def claim(statement: str, holds: bool, *, id: str | None = None, **numbers: obje
     if not bool(holds):
         raise ClaimError(f"claim false: {line}")
     print(f"claim holds: {line}")
+
+
+# ---------------------------------------------------------------------------------------------
+# The meanings the checker applies, written once.
+
+#: Magnitude words: a sentence that uses one needs a printed value of its claim in the range
+#: (lo, hi) (both ends included). Ratios read either way ("halves": 0.5 or 2). Actions on an
+#: input ("halving h", "doubling n") are no magnitude words.
+MAGNITUDES: dict[str, tuple[tuple[float, float], ...]] = {
+    r"a few": ((2.0, 5.0),),
+    r"several": ((3.0, 9.0),),
+    r"dozens?|tens": ((10.0, 99.0),),
+    r"hundreds": ((100.0, 999.0),),
+    r"thousands": ((1e3, 9999.0),),
+    r"millions": ((1e6, 1e9 - 1),),
+    r"an order of magnitude": ((5.0, 20.0), (0.05, 0.2)),
+    r"orders of magnitude": ((100.0, math.inf), (0.0, 0.01)),
+    r"twice|doubles|doubled|two-?fold": ((1.8, 2.2), (0.45, 0.556)),
+    r"halves|halved|half(?= the| as)": ((1.8, 2.2), (0.45, 0.556)),
+    r"thrice|triples?|tripled|three-?fold": ((2.7, 3.3), (0.303, 0.37)),
+    r"quarters|quartered|four-?fold": ((3.6, 4.4), (0.227, 0.278)),
+}
+
+#: Words of a verdict (comparatives, superlatives, absolutes, qualitative outcomes): a sentence
+#: backed by a claim must find each in the statement of one of its claims.
+VERDICTS = (
+    r"bounded|unbounded|drift(?:s|ing|ed)?|stable|unstable|blows? up|grows?|shrinks?|"
+    r"faster|slower|cheaper|dearer|costlier|more accurate|less accurate|better|worse|"
+    r"larger|smaller|higher|lower|fewer|greater|"
+    r"fewest|least|most|best|worst|largest|smallest|highest|lowest|cheapest|fastest|"
+    r"only|never|always|same|exactly|none"
+)
+
+#: Reasons a sentence may give for carrying no claim (``<!-- no-claim: REASON -->``, optionally
+#: ``REASON: free words``).
+NO_CLAIM_REASONS = {
+    "definition": "defines a term, a method or a quantity",
+    "parameter": "states a chosen input (a scene's stiffness, a step, a tolerance)",
+    "pointer": "points to another lesson, the lecture notes, an exercise or a tool",
+    "derivation-above": "repeats what the cell above derives symbolically or exactly",
+    "convention": "a naming or sign convention",
+    "outline": "what the lesson or a section will do",
+    "question": "asks the student to predict or to try",
+    "theorem": "a mathematical result cited from the lecture notes or the literature",
+}
+
+# ---------------------------------------------------------------------------------------------
+# Reading numbers.
+
+_SUPER = str.maketrans("⁰¹²³⁴⁵⁶⁷⁸⁹⁻", "0123456789-")
+_NUM = r"\d+(?:\.\d+)?"
+_TIMES_TEN = re.compile(
+    rf"(?:({_NUM})\s*(?:×|\\times|\\cdot|·)\s*)?10(?:\^\{{?([-−]?\d+)\}}?|([⁻]?[⁰¹²³⁴⁵⁶⁷⁸⁹]+))")
+_NUMBER = re.compile(
+    rf"(?<![\w.])(?:(√|\\sqrt\s*\{{?\s*)({_NUM})\}}?|(\\t?frac\s*\{{?(\d+)\}}?\s*\{{?(\d+)\}}?)|"
+    rf"({_NUM})\s*/\s*(\d+)(?![\w.])|({_NUM}(?:[eE][-+−]?\d+)?))(?![\w])")
+
+
+@dataclass(frozen=True)
+class Number:
+    """A number as written: its value, half a unit of its last digit, and its offsets."""
+
+    value: float
+    half_ulp: float
+    start: int
+    end: int
+    text: str
+
+    def matches(self, printed: float, printed_half_ulp: float) -> bool:
+        """Whether this number and a printed one round from a common value."""
+        return abs(self.value - printed) <= self.half_ulp + printed_half_ulp + 1e-12 * abs(printed)
+
+
+def _half_ulp(mantissa: str, exponent: int = 0) -> float:
+    decimals = len(mantissa.split(".")[1]) if "." in mantissa else 0
+    return 0.5 * 10.0 ** (exponent - decimals)
+
+
+_WORDS = {"two": 2, "three": 3, "four": 4, "five": 5, "six": 6, "seven": 7, "eight": 8, "nine": 9, "ten": 10,
+          "eleven": 11, "twelve": 12, "twenty": 20, "fifty": 50, "hundred": 100}
+#: a number written as a word counts where it is a factor: "seven times", "threefold", "a factor of three"
+_WORD = "|".join(_WORDS)
+_FACTOR_WORD = re.compile(rf"(?<=factor of )({_WORD})\b|\b({_WORD})(?=-? ?(?:times\b|fold\b)|- to)",
+                          re.IGNORECASE)
+_TIMES_ROOT = re.compile(r"(?<![\w.])(\d+)\s*(?:\\sqrt\s*\{?\s*|√)(\d+)\}?")
+
+
+def normalise(text: str) -> str:
+    r"""Write ``a × 10^b`` and ``10⁻⁶`` as ``aeb``, ``2\sqrt 2`` as ``2.828...``.
+
+    A number word that is a factor ("seven times", "threefold", "a factor of three") becomes its digits.
+    To the digits that fit: padded or cut to the original length, so offsets stay.
+    """
+    def sub(m: re.Match) -> str:
+        exp = (m.group(2) or m.group(3) or "").translate(_SUPER).replace("−", "-")
+        new = f"{m.group(1) or '1'}e{exp}"
+        return new + " " * max(0, len(m.group(0)) - len(new))
+
+    def root(m: re.Match) -> str:
+        value = float(m.group(1)) * math.sqrt(float(m.group(2)))
+        digits = max(1, len(m.group(0)) - len(str(int(value))) - 1)
+        return f"{value:.{digits}f}".ljust(len(m.group(0)))
+    def word(m: re.Match) -> str:
+        if m.group(0).lower() in ("two", "three", "four") and re.match(r"-?fold", m.string[m.end():]):
+            return m.group(0)                                 # twofold ... fourfold: magnitude words
+        return str(_WORDS[m.group(0).lower()]).ljust(len(m.group(0)))
+    return _FACTOR_WORD.sub(word, _TIMES_ROOT.sub(root, _TIMES_TEN.sub(sub, text)))
+
+
+def numbers_in(text: str) -> list[Number]:
+    r"""Read the numbers of ``text``.
+
+    Decimals, ``1e-6``, ``2 × 10⁻³``, ``10^{-4}``, ``√6``, ``1/2``, ``\frac{1}{2}``; signs are
+    dropped (values are compared by magnitude).
+    """
+    found = []
+    for m in _NUMBER.finditer(normalise(text)):
+        if m.group(2):                                        # √a
+            value, half = math.sqrt(float(m.group(2))), 0.0
+        elif m.group(3):                                      # \frac{a}{b}
+            value, half = float(m.group(4)) / float(m.group(5)), 0.0
+        elif m.group(6):                                      # a/b
+            value, half = float(m.group(6)) / float(m.group(7)), 0.0
+        else:
+            mant, _, exp = m.group(8).replace("E", "e").partition("e")
+            exponent = int(exp.replace("−", "-")) if exp else 0
+            value, half = float(mant) * 10.0 ** exponent, _half_ulp(mant, exponent)
+        found.append(Number(value, half, m.start(), m.end(), m.group(0)))
+    return found
+
+
+@dataclass(frozen=True)
+class Printed:
+    """One stored ``claim holds`` line: its id, statement and printed values."""
+
+    id: str
+    statement: str
+    values: tuple[tuple[float, float], ...]      # (value, half a unit of its last digit)
+
+
+_HOLDS = re.compile(r"^claim holds: \[([\w.\-]+)\] (.*)$", re.MULTILINE)
+
+
+def parse_printed(output: str) -> list[Printed]:
+    """Read the claims of a cell's stored output."""
+    claims = []
+    for m in _HOLDS.finditer(output):
+        statement, values = m.group(2), ""
+        head, sep, tail = statement.rpartition("  (")
+        if sep and tail.endswith(")") and re.match(r"[A-Za-z_]\w* = ", tail):
+            statement, values = head, tail[:-1]
+        values = re.sub(r"\b[A-Za-z_]\w* = ", " ", values)
+        claims.append(Printed(m.group(1), statement,
+                              tuple((n.value, n.half_ulp) for n in numbers_in(values))))
+    return claims
+
+
+def fits(kind: str, number: Number | None, lo_hi: tuple[float, float] | None,
+         values: tuple[tuple[float, float], ...]) -> bool:
+    """Whether one of ``values`` makes the prose true.
+
+    ``kind`` is ``"equal"`` (the number as printed, to its digits), ``"about"`` (within 10 %),
+    ``"above"`` / ``"below"`` (a printed value beyond the bound), ``"range"`` (``lo_hi``, each
+    end to its digits) or ``"magnitude"`` (``lo_hi`` exactly).
+    """
+    for value, half in values:
+        if kind == "equal" and number.matches(value, half):
+            return True
+        if kind == "about" and abs(value - number.value) <= 0.1 * number.value + half:
+            return True
+        if kind == "above" and value + half > number.value:
+            return True
+        if kind == "below" and value - half < number.value:
+            return True
+        if kind in ("range", "magnitude") and lo_hi[0] - half <= value <= lo_hi[1] + half:
+            return True
+    return False

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib.util
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -47,6 +48,9 @@ def findings(tmp_path: Path, markdown: list[str], **kw: str) -> list[str]:
     "RK4 is 14.9 times as accurate.",
     "The run took 5200 steps.",
     "Symplectic Euler is faster than RK4.",
+    "Only the implicit method survives.",
+    "It needs several steps.",
+    "The factor is $|R| = 0.5$ there.",
 ])
 def test_numbers_and_verdicts_are_listed(tmp_path, sentence):
     assert findings(tmp_path, [f"Intro without anything. {sentence} Another plain sentence."]) == [sentence]
@@ -56,7 +60,7 @@ def test_numbers_and_verdicts_are_listed(tmp_path, sentence):
     "Newton's law (lecture notes, eq. 3) and the spring force (eqs. 1–2) from the lecture.",
     "As lesson 04 and section 2.3 showed, see §2.8 and exercise 02.",
     "We step with `rk4` and rk4 in 2D and 3D.",
-    "The amplification factor is $R(z) = 1 + z + z^2/2$, and $$|R(2i)| = 1.$$",
+    "The amplification factor is $R(z) = 1 + z + z^2/2$, and $$e^{z} = O(h^2).$$",
     "## 3. A heading with 12 numbers",
     "A [link](https://example.org/42) to nowhere.",
 ])
@@ -66,11 +70,18 @@ def test_equations_citations_and_names_are_not_numbers(tmp_path, sentence):
 
 def test_claim_and_no_claim_comments_back_sentences(tmp_path):
     md = ("Halving h quarters the error. <!-- claim: quarter --> "
-          "The spring has k = 100 N/m. <!-- no-claim: a parameter of the scene --> "
+          "The spring has k = 100 N/m. <!-- no-claim: parameter: of the scene --> "
           "Nobody backs this 42.\n\n"
-          "<!-- no-claim: a list of definitions -->\n1. a first-order system, 2 of them.\n\n"
-          "* <!-- no-claim: a definition --> order 2 means ...")
+          "<!-- no-claim: definition -->\n1. a first-order system, 2 of them.\n\n"
+          "* <!-- no-claim: definition --> order 2 means ...")
     assert findings(tmp_path, [md]) == ["Nobody backs this 42."]
+
+
+def test_no_claim_takes_a_reason_of_the_vocabulary_and_names_no_claim(tmp_path):
+    bad = findings(tmp_path, ["It is 4. <!-- no-claim: a fact of mathematics -->"])
+    assert len(bad) == 1 and "reason 'a' is not one of definition" in bad[0]
+    bad = findings(tmp_path, ["In short: 4. <!-- no-claim: outline: summary of quarter -->"])
+    assert len(bad) == 1 and "names claims ['quarter']" in bad[0]
 
 
 def test_list_items_are_sentences_of_their_own(tmp_path):
@@ -79,10 +90,66 @@ def test_list_items_are_sentences_of_their_own(tmp_path):
 
 
 def test_claim_ids_must_exist_and_hold(tmp_path):
-    assert findings(tmp_path, ["It is 4. <!-- claim: nothere -->"]) == [
+    assert findings(tmp_path, ["It is 3.9. <!-- claim: nothere -->"]) == [
         "claim 'nothere' is named but no code cell defines it"]
-    assert findings(tmp_path, ["It is 4. <!-- claim: quarter -->"], output="") == [
+    assert findings(tmp_path, ["It is 3.9. <!-- claim: quarter -->"], output="") == [
         "claim 'quarter' has no stored 'claim holds' output"]
+
+
+VALUES = ("claim holds: [v] rk4 is faster and the energy stays bounded  "
+          "(ratio = 14.53, steps = 5200, drift = 2.2e-08, share = 0.70, 0.51, saved = 31 %, k_times = 178)\n")
+
+
+@pytest.mark.parametrize("sentence", [
+    "RK4 is 14.5 times as accurate.",                 # printed 14.53, to the sentence's digits
+    "RK4 is 15 times as accurate.",
+    "It took 5200 steps.",
+    "The error stays below $10^{-7}$ J.",             # a bound, inside an equation
+    "The error stays below 1e-7 J.",
+    "The error is $2.2 \\times 10^{-8}$ J.",
+    "It is more than 5000 steps.",
+    "Lumping saves about 30 % of the error.",
+    "The share is 0.5-0.7 of the error.",
+    "The share is between 0.4 and 0.6 of the error.",
+    "The drag halves the error.",                     # 0.51
+    "The stiffness is hundreds of times k.",          # 178
+    "It is more than twice as accurate.",             # 14.53 (a bound on the magnitude word)
+    "It is more than seven times as accurate.",       # a number word that is a factor
+    "The spread is a factor of ten or more.",         # "or more": a bound after the number
+    "RK4 is faster here.",
+    "The energy stays bounded.",
+])
+def test_sentences_that_their_claim_carries(tmp_path, sentence):
+    assert findings(tmp_path, [f"{sentence} <!-- claim: v -->"], output=VALUES) == []
+
+
+@pytest.mark.parametrize("sentence, problem", [
+    ("RK4 is 14.6 times as accurate.", "14.6: no printed value fits"),
+    ("It took 5300 steps.", "5300: no printed value fits"),
+    ("The error stays below $10^{-9}$ J.", "below 1e-9: no printed value fits"),
+    ("It is more than 70000 steps.", "above 70000: no printed value fits"),
+    ("Lumping saves about 40 % of the error.", "about 40: no printed value fits"),
+    ("The share is 0.8-0.9 of the error.", "0.8-0.9: no printed value fits"),
+    ("$|R(iy)| = 0.68$ there.", "0.68: no printed value fits"),
+    ("The stiffness is tens of times k.", "'tens': no printed value in"),
+    ("It is twice as accurate.", "'twice': no printed value in"),
+    ("It is several times as accurate.", "'several': no printed value in"),
+    ("It is less than half as accurate.", "'half': no printed value in"),
+    ("It is seven times as accurate.", "7: no printed value fits"),
+    ("RK4 is slower here.", "'slower' is in no claim's statement"),
+    ("Only RK4 is accurate.", "'Only' is in no claim's statement"),
+])
+def test_sentences_that_their_claim_contradicts(tmp_path, sentence, problem):
+    few = "claim holds: [v] rk4 is faster  (k_times = 178, share = 0.70)\n"
+    output = few if re.search("times|twice|half", sentence) and "$" not in sentence else VALUES
+    found = findings(tmp_path, [f"{sentence} <!-- claim: v -->"], output=output)
+    assert len(found) == 1 and problem in found[0], found
+
+
+def test_a_lead_comment_backs_and_checks_every_sentence_of_its_block(tmp_path):
+    md = "<!-- claim: v --> RK4 is 14.5 times as accurate. It took 5300 steps."
+    assert findings(tmp_path, [md], output=VALUES) == [
+        "It took 5300 steps. [5300: no printed value fits]"]
 
 
 def test_command_line_exit_codes(tmp_path, capsys):
@@ -113,3 +180,34 @@ def test_a_claim_made_false_fails_nbval(tmp_path):
     result = _nbval(path)
     assert result.returncode != 0
     assert "ClaimError" in result.stdout and "claim false: [quarter]" in result.stdout
+
+
+def test_a_folded_solution_is_not_checked(tmp_path):
+    md = ("Derive it. <!-- no-claim: question -->\n\n"
+          "<details><summary>Solution</summary>\n\nIt is 42.\n</details>")
+    assert findings(tmp_path, [md]) == []
+    assert findings(tmp_path, ["It is 42.\n\n" + md]) == ["It is 42."]
+
+
+MUTATIONS = [   # (lesson, text of a backed sentence, the same text made wrong, what the checker must say)
+    ("00_mass_spring_systems.ipynb", "drag has removed more than 2.5 J", "drag has removed more than 25 J",
+     "above 25: no printed value fits"),
+    ("04_implicit_euler.ipynb", "vibrate at hundreds of radians per second",
+     "vibrate at thousands of radians per second", "'thousands': no printed value in"),
+    ("02_heun_midpoint_rk4.ipynb", "per unit of work the higher order wins",
+     "per unit of work the lower order wins", "'lower' is in no claim's statement"),
+]
+
+
+@pytest.mark.parametrize("lesson, right, wrong, problem", MUTATIONS)
+def test_a_wrong_number_magnitude_or_comparative_in_a_lesson_is_caught(tmp_path, lesson, right, wrong,
+                                                                       problem):
+    """A number, a magnitude word and a comparative edited in three real lessons: each is listed."""
+    nb = nbformat.read(ROOT / "lessons" / lesson, as_version=4)
+    assert lessons_check.check_notebook(ROOT / "lessons" / lesson) == []
+    cells = [c for c in nb.cells if c.cell_type == "markdown" and right in c.source]
+    assert len(cells) == 1
+    cells[0].source = cells[0].source.replace(right, wrong)
+    nbformat.write(nb, tmp_path / lesson)
+    found = [str(f) for f in lessons_check.check_notebook(tmp_path / lesson)]
+    assert len(found) == 1 and wrong in found[0] and problem in found[0], found

@@ -1,30 +1,45 @@
-"""List the lessons' markdown sentences that state a number or a verdict no claim backs.
+"""Check the lessons' markdown sentences against the claims that back them.
 
 Usage (from the repository root)::
 
     python tools/lessons_check.py                       # every lessons/NN_*.ipynb
     python tools/lessons_check.py lessons/03_verlet_leapfrog.ipynb
 
-Exit 0 when every such sentence is backed, 1 with a list (``FILE:cell N: sentence``) otherwise,
-2 on a file that cannot be read.
+Exit 0 when every sentence is backed and agrees with its claims, 1 with a list
+(``FILE:cell N: sentence [problem]``) otherwise, 2 on a file that cannot be read.
 
-A sentence *needs backing* when, outside equations (``$...$``, ``$$...$$``), code (`` `...` ``),
-links' targets and headings, it contains a digit or a verdict word (bounded, drifting, stable,
-faster, times, order, ...). Citations do not count as numbers: "eq. 3", "eqs. 1–2", "lesson 04",
-"section 2", "§2.3", "exercise 02", names such as ``rk4`` or "2D", list markers "1.".
+A sentence *needs backing* when, outside code, links' targets, headings and citations ("eq. 3",
+"lesson 04", "§2.3", names such as ``rk4`` or "2D", list markers "1."), it contains a number
+(inside ``$...$`` too, where a side of a relation is purely numeric: ``$k = 100$``,
+``$|R| = 1/2$``, ``$10^{-4}$``, not ``$O(h^2)$``), a magnitude word or a verdict word
+(``mslab.claims.MAGNITUDES``, ``mslab.claims.VERDICTS``).
 
-A sentence is *backed* by an HTML comment inside it or right after its end:
+A sentence is *backed* by an HTML comment inside it or right after its end; a comment at the
+very start of a paragraph, block quote or list item covers that whole block:
 
-* ``<!-- claim: ID -->`` (several: ``<!-- claim: ID1, ID2 -->``) names a claim of the same
-  notebook: a code cell calls ``claim(..., id="ID")`` (``mslab.claims``) and its stored output
-  shows ``claim holds: [ID]``. An ID that no cell defines, or whose stored output does not show
-  it holding, is listed too.
-* ``<!-- no-claim: reason -->`` marks a sentence that is not a measurement (a definition, a
-  scene's parameters, a fact of the mathematics derived in an equation).
+* ``<!-- claim: ID -->`` (several: ``<!-- claim: ID1, ID2 -->``) names claims of the same
+  notebook, whose stored outputs show ``claim holds: [ID] statement  (name = value, ...)``
+  (``mslab.claims.claim``). Then the sentence must agree with the printed values:
 
-A comment at the very start of a paragraph, block quote or list item (before any text) covers
-that whole block instead of one sentence. Claim IDs are found as literal ``id="ID"`` arguments
-and in the stored outputs.
+  - every number equals a printed value to the digits the sentence gives ("14.5" against
+    "14.53"; the two roundings overlap), or is bounded by one: "more than / over / above /
+    at least 70" needs a printed value above 70, "below / under / less than / within / up to
+    1e-6" one below, "about / roughly / nearly / ~ 30" one within 10 %, "30-50", "3 to 5",
+    "between 3 and 5" one inside, "10 or more" one at least 10 (relations inside ``$...$``
+    likewise: ``<``, ``\\le``, ``\\approx``); a number word counts where it is a factor
+    ("seven times", "tenfold", "a factor of three"), other number words are not compared;
+  - every magnitude word ("several", "tens", "twice", "halves", ...) has a printed value in
+    its range, written once in ``mslab.claims.MAGNITUDES``;
+  - every verdict word ("faster", "only", "never", "same", "bounded", ...) appears in the
+    statement of one of its claims.
+
+* ``<!-- no-claim: REASON -->`` (or ``REASON: a few words``) marks a sentence that is not a
+  measurement; REASON is one of ``mslab.claims.NO_CLAIM_REASONS`` (definition, parameter,
+  pointer, derivation-above, convention, outline, question, theorem) and the words never name
+  a claim.
+
+A folded solution (``<details>...</details>``, the worked answer of a pen-and-paper task) is
+not checked. A claim ID that no cell defines, or whose stored output does not show it holding, is listed.
 """
 
 from __future__ import annotations
@@ -37,22 +52,37 @@ from pathlib import Path
 
 import nbformat
 
-LESSONS = Path(__file__).resolve().parents[1] / "lessons"
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+from mslab.claims import (  # noqa: E402
+    MAGNITUDES,
+    NO_CLAIM_REASONS,
+    VERDICTS,
+    Printed,
+    fits,
+    normalise,
+    numbers_in,
+    parse_printed,
+)
 
-VERDICT = re.compile(
-    r"\b(bounded|unbounded|drift(?:s|ing|ed)?|stable|unstable|faster|slower|cheaper|dearer|"
-    r"times|orders?|more accurate|less accurate|better|worse|twice|halves|halving|doubles|"
-    r"\w+fold|grows?|shrinks?|blows? up)\b", re.IGNORECASE)
+LESSONS = ROOT / "lessons"
+
+VERDICT = re.compile(rf"\b(?:{VERDICTS})\b", re.IGNORECASE)
+MAGNITUDE = [(re.compile(rf"\b(?:{words})\b(?!-)", re.IGNORECASE), ranges)
+             for words, ranges in MAGNITUDES.items()]
 COMMENT = re.compile(r"<!--\s*(claim|no-claim)\s*:\s*(.*?)\s*-->", re.DOTALL)
 CLAIM_ID = re.compile(r"""\bid\s*=\s*(?:f?["'])([\w.\-]+)["']""")
+MATH = re.compile(r"\$\$.*?\$\$|(?<!\\)\$[^$]+?(?<!\\)\$", re.DOTALL)
+RELATION = re.compile(r"\\approx|\\sim|\\simeq|\\leq?|\\geq?|\\lt|\\gt|\\ll|\\gg|[<>=≈≤≥]")
+REL_SIGN = {"\\approx": "≈", "\\sim": "≈", "\\simeq": "≈", "\\le": "≤", "\\leq": "≤", "\\lt": "<",
+            "\\ge": "≥", "\\geq": "≥", "\\gt": ">", "\\ll": "<", "\\gg": ">"}
 
 # spans whose digits are not numbers of a statement (each replaced by filler of equal length)
 MASKS = [
     re.compile(r"<!--.*?-->", re.DOTALL),                       # comments (read separately)
-    re.compile(r"\$\$.*?\$\$", re.DOTALL),                      # display equations
-    re.compile(r"(?<!\\)\$[^$]+?(?<!\\)\$", re.DOTALL),         # inline equations
     re.compile(r"```.*?```", re.DOTALL),                        # code blocks
     re.compile(r"`[^`]*`"),                                     # inline code
+    MATH,                                                       # equations (read separately)
     re.compile(r"\]\([^)]*\)"),                                 # link targets
     re.compile(r"<[^>\n]+>"),                                   # html tags
     re.compile(r"^\s{0,3}#.*$", re.MULTILINE),                  # headings
@@ -62,17 +92,27 @@ MASKS = [
                r"figs?|figures?|items?|issues?|ch)\.?\s*\d[\d.]*(?:\s*(?:[–-]|and|to|,)\s*\d[\d.]*)*",
                re.IGNORECASE),                                  # citations: eq. 3, lessons 04-05
     re.compile(r"§\s*\d[\d.]*(?:\s*[–-]\s*\d[\d.]*)*"),         # §2.3
-    re.compile(r"\b\w*[A-Za-z_]\w*\d\w*\b|\b\d+[A-Za-z_]*[A-Za-z_]\w*\b"),  # rk4, dop853, 2D, 3rd
+    re.compile(r"(?!\d+(?:\.\d+)?[eE][-+−]?\d)"                 # names: rk4, dop853, 2D, 3rd
+               r"(?:\b\w*[A-Za-z_]\w*\d\w*\b|\b\d+[A-Za-z_]*[A-Za-z_]\w*\b)"),
 ]
 ABBREVIATIONS = re.compile(r"\b(?:e\.g|i\.e|vs|cf|approx|etc|eqs?|resp|no)\.", re.IGNORECASE)
 SENTENCE_END = re.compile(r"[.!?:;](?=\s+[^a-z\s])|\n\s*\n|\n(?=\s*(?:\d+[.)]|[-*+])\s)")
-DIGIT = re.compile(r"\d")
 LEAD_COMMENT = re.compile(r"\s*(?:>\s*)?(?:(?:\d+[.)]|[-*+])\s+)?(?:\*\*)?\s*<!--\s*(?:no-)?claim\s*:")
+ABOVE = re.compile(r"(?:more than|over|above|greater than|exceeds?|exceeding|at least|beyond|[>≥])\s*$",
+                   re.IGNORECASE)
+BELOW = re.compile(r"(?:less than|fewer than|below|under|at most|within|up to|no more than|smaller than|"
+                   r"[<≤])\s*$", re.IGNORECASE)
+ABOUT = re.compile(r"(?:about|around|roughly|approximately|nearly|almost|close to|some|~|≈)\s*$",
+                   re.IGNORECASE)
+DETAILS = re.compile(r"<details>.*?</details>", re.DOTALL)     # a folded solution of a task
+OR_MORE = re.compile(r"\s*(?:or more|or above|or larger|and more|\+)\b", re.IGNORECASE)
+OR_LESS = re.compile(r"\s*(?:or less|or fewer|or below|or smaller)\b", re.IGNORECASE)
+RANGE_JOIN = re.compile(r"\s*(?:[-–]|to)\s*$")
 
 
 @dataclass
 class Finding:
-    """One unbacked sentence (or a claim reference that no cell backs)."""
+    """One unbacked sentence, a sentence its claims contradict, or a dangling claim reference."""
 
     path: Path
     cell: int
@@ -82,11 +122,52 @@ class Finding:
         return f"{self.path}:cell {self.cell}: {self.text}"
 
 
-def _masked(text: str) -> str:
-    """``text`` with equations, code, comments, citations and names blanked out (same length)."""
+FILL = "\u2591"                                                # what masks write
+
+
+def _fill(m: re.Match) -> str:
+    return re.sub(r"[^\n]", FILL, m.group(0))
+
+
+def _math_view(src: str) -> str:
+    """A math span with only its purely numeric sides kept (and relations as one sign), same length."""
+    body_start = 2 if src.startswith("$$") else 1
+    out = list(re.sub(r"[^\n]", FILL, src))
+    pieces, last = [], body_start
+    for m in RELATION.finditer(src, body_start, len(src) - body_start):
+        pieces.append((last, m.start()))
+        sign = REL_SIGN.get(m.group(0), m.group(0))
+        out[m.start()] = sign
+        last = m.end()
+    pieces.append((last, len(src) - body_start))
+    for a, b in pieces:
+        piece = src[a:b]
+        bare = re.sub(r"\\(?:text|mathrm|mbox|,|;|:|!| )\{?[^}\\]*\}?|\\%|%|\\quad|\\left|\\right", "", piece)
+        rest = normalise(bare)
+        numbers = numbers_in(rest)
+        for n in reversed(numbers):
+            rest = rest[:n.start] + rest[n.end:]
+        if numbers and not re.sub(r"[\s\-−+(){}]|\\times|\\cdot|\\,", "", rest):
+            out[a:b] = list(piece)
+    return "".join(out)
+
+
+def views(text: str) -> tuple[str, str]:
+    """``text`` with code, comments, citations and names blanked out (same length): once with
+    equations blanked too (for splitting sentences), once with their numeric sides kept."""
+    blank = text
     for pattern in MASKS:
-        text = pattern.sub(lambda m: re.sub(r"[^\n]", "~", m.group(0)), text)
-    return ABBREVIATIONS.sub(lambda m: m.group(0)[:-1] + "~", text)
+        blank = pattern.sub(_fill, blank)
+    blank = ABBREVIATIONS.sub(lambda m: m.group(0)[:-1] + FILL, blank)
+    numeric = list(blank)
+    code = text
+    for pattern in MASKS[:3]:
+        code = pattern.sub(_fill, code)
+    headings = [h.span() for h in MASKS[6].finditer(code)]
+    for m in MATH.finditer(code):
+        if not any(a <= m.start() < b for a, b in headings):
+            numeric[m.start():m.end()] = list(_math_view(m.group(0)))
+    return blank, "".join(numeric).replace(FILL, " ")
 
 
 def _split(text: str, pattern: str, start: int, end: int) -> list[tuple[int, int]]:
@@ -94,22 +175,21 @@ def _split(text: str, pattern: str, start: int, end: int) -> list[tuple[int, int
     return list(zip(bounds, bounds[1:], strict=False))
 
 
-def _blocks(text: str) -> list[tuple[int, int]]:
-    """Paragraphs, and the items of lists, as (start, end) offsets; a paragraph or item that
-    starts with a claim or no-claim comment is left out (the comment covers it)."""
+def _blocks(text: str) -> list[tuple[int, int, str | None]]:
+    """Paragraphs, and the items of lists, as (start, end, lead comment or None)."""
     blocks = []
     for p0, p1 in _split(text, r"\n\s*\n", 0, len(text)):
-        if not LEAD_COMMENT.match(text, p0, p1):
-            blocks += [(a, b) for a, b in _split(text, r"\n(?=\s*(?:\d+[.)]|[-*+])\s)", p0, p1)
-                       if not LEAD_COMMENT.match(text, a, b)]
+        lead = COMMENT.search(text, p0, p1).group(0) if LEAD_COMMENT.match(text, p0, p1) else None
+        for a, b in _split(text, r"\n(?=\s*(?:\d+[.)]|[-*+])\s)", p0, p1):
+            own = COMMENT.search(text, a, b).group(0) if LEAD_COMMENT.match(text, a, b) else None
+            blocks.append((a, b, own or lead))
     return blocks
 
 
-def _sentences(text: str, start: int, end: int) -> list[tuple[int, int]]:
+def _sentences(text: str, blank: str, start: int, end: int) -> list[tuple[int, int]]:
     """Sentences of ``text[start:end]``; a comment right after a sentence's end belongs to it."""
-    masked = _masked(text)
     cuts = [start]
-    for m in SENTENCE_END.finditer(masked, start, end):
+    for m in SENTENCE_END.finditer(blank, start, end):
         cut = m.end()
         trailing = re.match(r"\s*(<!--.*?-->\s*)+", text[cut:end], re.DOTALL)
         cuts.append(cut + (trailing.end() if trailing else 0))
@@ -117,46 +197,122 @@ def _sentences(text: str, start: int, end: int) -> list[tuple[int, int]]:
     return [(a, b) for a, b in zip(cuts, cuts[1:], strict=False) if text[a:b].strip()]
 
 
-def _needs_backing(masked: str) -> bool:
-    return bool(DIGIT.search(masked) or VERDICT.search(masked))
+def _needs_backing(numeric: str) -> bool:
+    return bool(numbers_in(numeric) or VERDICT.search(numeric)
+                or any(p.search(numeric) for p, _ in MAGNITUDE))
 
 
-def claim_ids(nb: nbformat.NotebookNode) -> tuple[set[str], set[str]]:
-    """IDs that code cells define, and IDs whose stored output shows the claim holding."""
-    defined, holding = set(), set()
+def claims_of(nb: nbformat.NotebookNode) -> tuple[set[str], dict[str, Printed]]:
+    """IDs that code cells define, and the stored claims that hold, by ID."""
+    defined, holding = set(), {}
     for cell in nb.cells:
         if cell.cell_type != "code":
             continue
         defined |= set(CLAIM_ID.findall(cell.source))
         for out in cell.get("outputs", []):
-            text = out.get("text", "") if out.get("output_type") == "stream" else ""
-            holding |= set(re.findall(r"claim holds: \[([\w.\-]+)\]", text))
-    return defined | holding, holding
+            if out.get("output_type") == "stream":
+                holding.update((p.id, p) for p in parse_printed(out.get("text", "")))
+    return defined | set(holding), holding
 
 
-def check_markdown(path: Path, index: int, text: str, defined: set[str], holding: set[str]) -> list[Finding]:
+def _root(word: str) -> str:
+    word = word.lower()
+    return re.sub(r"(?:s|ed|ing)$", "", word) if len(word) > 5 else word
+
+
+def disagreements(numeric: str, claims: list[Printed]) -> list[str]:
+    """What of one sentence (its numeric view) the printed claims do not carry."""
+    numeric = normalise(numeric)
+    values = tuple(v for p in claims for v in p.values)
+    statements = " ".join(p.statement.lower() for p in claims)
+    problems, numbers, used = [], numbers_in(numeric), set()
+    for i, n in enumerate(numbers):
+        if i in used:
+            continue
+        before = numeric[:n.start]
+        nxt = numbers[i + 1] if i + 1 < len(numbers) else None
+        gap = numeric[n.end:nxt.start] if nxt else ""
+        between = re.search(r"between\s*$", before, re.I) and gap.strip() == "and"
+        if nxt and (RANGE_JOIN.fullmatch(gap) or between):
+            used.add(i + 1)
+            ok = fits("range", None, (n.value - n.half_ulp, nxt.value + nxt.half_ulp), values)
+            label = f"{n.text}-{nxt.text}"
+        else:
+            after = numeric[n.end:n.end + 20]
+            kind = ("above" if ABOVE.search(before) or OR_MORE.match(after) else
+                    "below" if BELOW.search(before) or OR_LESS.match(after) else
+                    "about" if ABOUT.search(before) else "equal")
+            ok, label = fits(kind, n, None, values), (n.text if kind == "equal" else f"{kind} {n.text}")
+        if not ok:
+            problems.append(f"{label.strip()}: no printed value fits")
+    for pattern, ranges in MAGNITUDE:
+        for m in pattern.finditer(numeric):
+            before = numeric[:m.start()]
+            if ABOVE.search(before):                  # "more than twice": above the range's lower end
+                ranges = tuple((lo, float("inf")) for lo, _ in ranges[:1])
+            elif BELOW.search(before):                # "less than half": below its upper end
+                ranges = tuple((0.0, hi) for _, hi in ranges[-1:])
+            if not any(fits("magnitude", None, r, values) for r in ranges):
+                problems.append(f"'{m.group(0)}': no printed value in {ranges}")
+    for m in VERDICT.finditer(numeric):
+        if not re.search(rf"\b{re.escape(_root(m.group(0)))}", statements):
+            problems.append(f"'{m.group(0)}' is in no claim's statement")
+    return problems
+
+
+def _backing(comments: list[re.Match], defined: set[str]) -> tuple[list[str] | None, str | None]:
+    """(claim ids, or None for a no-claim) and a problem with the comments, if any."""
+    ids = [cid for c in comments if c.group(1) == "claim"
+           for cid in filter(None, (s.strip() for s in c.group(2).split(",")))]
+    if ids:
+        return ids, None
+    text = comments[0].group(2)
+    reason = re.match(r"[\w-]*", text).group(0)
+    words = text[len(reason):]
+    if reason not in NO_CLAIM_REASONS:
+        return None, f"no-claim reason {reason!r} is not one of {', '.join(NO_CLAIM_REASONS)}"
+    named = [cid for cid in defined if re.search(rf"\b{re.escape(cid)}\b", words)]
+    return None, (f"no-claim names claims {named}: back the sentence with them" if named else None)
+
+
+def check_markdown(path: Path, index: int, text: str, defined: set[str],
+                   holding: dict[str, Printed]) -> list[Finding]:
     """Findings of one markdown cell."""
     found = []
     for comment in COMMENT.finditer(text):
+        problem = _backing([comment], defined)[1]
+        if problem:
+            found.append(Finding(path, index, f"{comment.group(0)} [{problem}]"))
         if comment.group(1) == "claim":
             for cid in filter(None, (s.strip() for s in comment.group(2).split(","))):
                 if cid not in defined:
                     found.append(Finding(path, index, f"claim {cid!r} is named but no code cell defines it"))
                 elif cid not in holding:
                     found.append(Finding(path, index, f"claim {cid!r} has no stored 'claim holds' output"))
-    masked_all = _masked(text)
-    for b0, b1 in _blocks(text):
-        for s0, s1 in _sentences(text, b0, b1):
-            if COMMENT.search(text[s0:s1]) or not _needs_backing(masked_all[s0:s1]):
+    blank, numeric = views(text)
+    solutions = [m.span() for m in DETAILS.finditer(text)]
+    for b0, b1, lead in _blocks(text):
+        for s0, s1 in _sentences(text, blank, b0, b1):
+            if any(a <= s0 < b for a, b in solutions):
                 continue
-            found.append(Finding(path, index, " ".join(text[s0:s1].split())))
+            comments = list(COMMENT.finditer(text, s0, s1)) or list(COMMENT.finditer(lead or ""))
+            sentence = " ".join(text[s0:s1].split())
+            if not comments:
+                if _needs_backing(numeric[s0:s1]):
+                    found.append(Finding(path, index, sentence))
+                continue
+            ids = _backing(comments, defined)[0]
+            if ids:
+                claims = [holding[cid] for cid in ids if cid in holding]
+                found += [Finding(path, index, f"{sentence} [{p}]")
+                          for p in disagreements(numeric[s0:s1], claims)] if claims else []
     return found
 
 
 def check_notebook(path: Path) -> list[Finding]:
-    """Every unbacked sentence and every dangling claim reference of one notebook."""
+    """Every unbacked or contradicted sentence and every dangling claim reference of one notebook."""
     nb = nbformat.read(path, as_version=4)
-    defined, holding = claim_ids(nb)
+    defined, holding = claims_of(nb)
     found = []
     for index, cell in enumerate(nb.cells):
         if cell.cell_type == "markdown":
@@ -180,8 +336,8 @@ def main(argv: list[str] | None = None) -> int:
     for finding in findings:
         print(finding)
     if findings:
-        print(f"{len(findings)} sentence(s) with a number or verdict that no claim backs "
-              f"(add <!-- claim: ID --> or <!-- no-claim: reason -->)", file=sys.stderr)
+        print(f"{len(findings)} sentence(s) that no claim backs or that their claims do not carry "
+              f"(see tools/lessons_check.py's docstring)", file=sys.stderr)
         return 1
     return 0
 
