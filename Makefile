@@ -80,20 +80,29 @@ test-minimal: $(MINIMAL)/.installed
 lessons-check: $(STAMP)
 	$(PY) tools/lessons_check.py
 
-# the lessons in JupyterLab (file browser on lessons/, the repository as its root folder), the venv
-# active in its terminals (`pytest`, `mslab` there are the venv's): bash reads the user's ~/.bashrc,
-# which may put another Python first on PATH (pyenv, conda), and then the venv's activate script.
-# tests/test_lab.py starts it so (LAB_ROOT: a copy of the lessons; LAB_ARGS: its port and token).
-LAB_ROOT ?= $(CURDIR)
+# the lessons in JupyterLab, the student's way: JupyterLab's root is lessons/ (LAB_ROOT), so the
+# repository's exercises/ (reference solutions, hidden tests) is outside it; the lessons' "Try it
+# yourself" links point into lessons/student/, the student release of exercises/ (`mslab release`:
+# solutions stripped, no hidden test), made when missing and never overwritten (a student's work
+# lives there; delete the folder for a fresh copy). As root (uid 0, e.g. a container) --allow-root
+# is passed, else Jupyter refuses to start. The venv is active in its terminals (`pytest`, `mslab`
+# there are the venv's): bash reads the user's ~/.bashrc, which may put another Python first on
+# PATH (pyenv, conda), and then the venv's activate script. tests/test_lab.py starts it so
+# (LAB_ROOT: a copy of the lessons; LAB_ARGS: its port and token); tests/test_student_path.py
+# checks the release the links reach.
+LAB_ROOT ?= $(CURDIR)/lessons
+LAB_STUDENT = $(LAB_ROOT)/student
 LAB_RC ?= $(VENV)/lab.bashrc
 LAB_ARGS ?=
 # as root (a container, a lab image) JupyterLab refuses to start without --allow-root: given then
 LAB_ROOT_FLAG := $(if $(filter 0,$(shell id -u)),--allow-root)
 lab: $(STAMP)
+	test -d "$(LAB_STUDENT)" || $(VENV)/bin/mslab release "$(CURDIR)/exercises" "$(LAB_STUDENT)"
 	printf '[ -f ~/.bashrc ] && . ~/.bashrc\n. "%s/bin/activate"\n' "$(abspath $(VENV))" > $(LAB_RC)
 	PATH="$(abspath $(VENV))/bin:$$PATH" VIRTUAL_ENV="$(abspath $(VENV))" $(VENV)/bin/jupyter lab \
-	    --ServerApp.root_dir="$(LAB_ROOT)" --LabApp.default_url=/lab/tree/lessons \
-	    --ServerApp.terminado_settings=shell_command="bash --rcfile $(abspath $(LAB_RC))" $(LAB_ROOT_FLAG) $(LAB_ARGS)
+	    --ServerApp.root_dir="$(LAB_ROOT)" --LabApp.default_url=/lab/tree \
+	    --ServerApp.terminado_settings=shell_command="bash --rcfile $(abspath $(LAB_RC))" \
+	    $(LAB_ROOT_FLAG) $(LAB_ARGS)
 
 # re-execute every lesson in place (stored outputs then match the library; nbval checks them)
 lessons: $(STAMP)

@@ -31,6 +31,7 @@ import socket
 import subprocess
 import sys
 import time
+import urllib.error
 import urllib.request
 from pathlib import Path
 
@@ -106,8 +107,8 @@ def tools() -> dict:
 def lab(tools, tmp_path_factory):
     """JupyterLab on a copy of lessons/, 127.0.0.1, random port and token; stopped by PID."""
     home = tmp_path_factory.mktemp("lab")
-    root = home / "root"
-    shutil.copytree(ROOT / "lessons", root / "lessons")
+    root = home / "lessons"      # JupyterLab's root is the lessons folder (`make lab`: LAB_ROOT)
+    shutil.copytree(ROOT / "lessons", root, ignore=shutil.ignore_patterns("student", ".ipynb_checkpoints"))
     settings = home / "settings" / "@jupyterlab" / "apputils-extension"
     settings.mkdir(parents=True)
     (settings / "notification.jupyterlab-settings").write_text(
@@ -125,6 +126,7 @@ def lab(tools, tmp_path_factory):
                JUPYTERLAB_WORKSPACES_DIR=str(home / "workspaces"))
     log = (home / "jupyterlab.log").open("w")
     # the students' command, `make lab`, with this venv (installed: no STAMP), on the copy
+    # (no --allow-root: as root `make lab` adds it)
     args = ["--ServerApp.open_browser=False", "--ServerApp.ip=127.0.0.1", f"--ServerApp.port={port}",
             "--ServerApp.port_retries=0", f"--IdentityProvider.token={token}",
             "--LabApp.expose_app_in_browser=True", "--LabApp.news_url=None",
@@ -326,12 +328,12 @@ def test_lesson_in_jupyterlab(lesson: Path, lab, page, request) -> None:
     opened, checked as opened and started in tabs of their own (each its kernel) before this one's
     checks, so that the kernels share the machine's cores; every wait is on a signal (kernel
     status, messages), never on a time."""
-    path = f"lessons/{lesson.name}"
+    path = lesson.name
     try:
         opened = STARTED.pop(path, None) or _open_and_run_all(page, path)
         found = _problems(opened, "opened")
         for following in _next_lessons(request, AHEAD):
-            if (ahead := f"lessons/{following.name}") not in STARTED:
+            if (ahead := following.name) not in STARTED:
                 try:
                     STARTED[ahead] = _open_and_run_all(page, ahead)
                 except Exception:
@@ -416,3 +418,20 @@ def test_exercise_tests_pass_in_jupyterlab_terminal(lab) -> None:
         ws.close()
     assert f"PYTEST={Path(sys.prefix) / 'bin' / 'pytest'}" in out, out[-2000:]
     assert "EXIT=0" in out and " passed" in out and "Error" not in out, out[-2000:]
+
+
+def test_lab_serves_the_student_release(lab) -> None:
+    """`make lab`'s root: the lessons with student/ (solutions stripped, no hidden test), no exercises/."""
+    from mslab.grading.release import strip_solutions
+
+    def get(path: str) -> dict:
+        url = f"{lab['url']}/api/contents/{path}?token={lab['token']}"
+        with urllib.request.urlopen(url, timeout=30) as answer:
+            return json.load(answer)
+
+    names = {item["name"] for item in get("student/06_implicit_euler")["content"]}
+    assert names >= {"implicit_euler.py", "test_public.py", "README.md"} and "test_hidden.py" not in names
+    shown = get("student/06_implicit_euler/implicit_euler.py")["content"]
+    assert shown == strip_solutions((ROOT / "exercises/06_implicit_euler/implicit_euler.py").read_text())
+    with pytest.raises(urllib.error.HTTPError):
+        get("exercises")

@@ -1,0 +1,98 @@
+"""A student's path holds no answer key (issue 36, item 3; issue 39: `make lab` as root).
+
+`make lab` opens JupyterLab with the lessons folder as its root and makes ``student/`` there, the
+student release of ``exercises/`` (``mslab release``). Every lesson's "Try it yourself" section
+links into that folder. Here the lab's own recipe (``make -n lab``) is run on a copy of the
+lessons, and every link target is opened as JupyterLab resolves it (relative to the notebook, in
+the lab's root): it exists, lies in the release, is the exercise's source with every solution block
+replaced (no reference line that the exercise keeps only inside a solution block), and no hidden
+test lies anywhere under the lab's root.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shlex
+import shutil
+import subprocess
+import sys
+from collections import Counter
+from pathlib import Path
+
+import nbformat
+import pytest
+
+from mslab.grading.layout import BEGIN, HIDDEN
+from mslab.grading.release import solution_lines, strip_solutions
+
+ROOT = Path(__file__).resolve().parents[1]
+LESSONS = sorted((ROOT / "lessons").glob("[0-9][0-9]_*.ipynb"))
+LINK = re.compile(r"\]\(([^)\s]+)\)")
+
+
+def _make_lab_dry_run(root: Path) -> str:
+    if shutil.which("make") is None:
+        pytest.skip("needs make")
+    return subprocess.run(["make", "-s", "-n", "-C", str(ROOT), "lab", f"LAB_ROOT={root}", "STAMP=",
+                           f"VENV={sys.prefix}"], capture_output=True, text=True, check=True).stdout
+
+
+def _try_it_links(lesson: Path) -> list[str]:
+    """The link targets of the lesson's "Try it yourself" section (to the end of its cell)."""
+    links = []
+    for cell in nbformat.read(lesson, as_version=4).cells:
+        if cell.cell_type == "markdown" and "Try it yourself" in cell.source:
+            links += LINK.findall(cell.source[cell.source.index("Try it yourself"):])
+    return links
+
+
+@pytest.fixture(scope="module")
+def lab_root(tmp_path_factory) -> Path:
+    """A copy of lessons/ with the release made by `make lab`'s own recipe line."""
+    root = tmp_path_factory.mktemp("lab") / "lessons"
+    shutil.copytree(ROOT / "lessons", root, ignore=shutil.ignore_patterns("student", ".ipynb_checkpoints"))
+    recipe = _make_lab_dry_run(root)
+    release = [line for line in recipe.splitlines() if " release " in line]
+    assert len(release) == 1, recipe
+    subprocess.run(["bash", "-c", release[0]], cwd=ROOT, check=True, capture_output=True)
+    assert f'--ServerApp.root_dir="{root}"' in recipe, recipe
+    return root
+
+
+def test_lab_runs_as_root_with_allow_root(tmp_path) -> None:
+    """Issue 39: as uid 0 Jupyter refuses to start without --allow-root; `make lab` passes it then only."""
+    flags = shlex.split(_make_lab_dry_run(tmp_path).replace("\\\n", " "))
+    assert ("--allow-root" in flags) == (os.getuid() == 0)
+
+
+@pytest.mark.parametrize("lesson", LESSONS, ids=[p.stem for p in LESSONS])
+def test_try_it_yourself_opens_the_stripped_exercise(lesson: Path, lab_root: Path) -> None:
+    links = _try_it_links(lesson)
+    assert links, f"{lesson.name}: its Try it yourself section links to no exercise"
+    release = (lab_root / "student").resolve()
+    for href in links:
+        target = (lab_root / href).resolve()      # JupyterLab: relative to the notebook's folder
+        assert target.is_relative_to(release), f"{lesson.name}: {href} leads outside student/"
+        assert target.is_file(), f"{lesson.name}: {href} does not exist in the release"
+        original = ROOT / "exercises" / target.relative_to(release)
+        source, shown = original.read_text(), target.read_text()
+        assert BEGIN in source, f"{original}: expected the reference solution in the repository"
+        assert shown == strip_solutions(source, str(original))
+        kept = Counter(line.strip() for line in strip_solutions(source).splitlines())
+        leaked = [line for line, n in Counter(solution_lines(source)).items()
+                  if Counter(line.strip() for line in shown.splitlines())[line] > kept[line]]
+        assert not leaked, f"{lesson.name}: {href} shows reference lines {leaked[:3]}"
+        assert "raise NotImplementedError" in shown
+        assert not [p for p in target.parent.iterdir() if HIDDEN.match(p.name)]
+
+
+def test_lab_root_holds_no_answer_key(lab_root: Path) -> None:
+    """Nothing under JupyterLab's root is a hidden test or a solution block."""
+    assert sorted(p.name for p in (lab_root / "student").iterdir() if p.is_dir()) == sorted(
+        p.name for p in (ROOT / "exercises").iterdir() if p.is_dir() and p.name[:2].isdigit())
+    for path in lab_root.rglob("*"):
+        assert not HIDDEN.match(path.name), path
+        if path.suffix == ".py":
+            assert BEGIN not in path.read_text(), path
+    assert not (lab_root / "exercises").exists()
