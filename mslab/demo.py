@@ -72,11 +72,12 @@ def chosen_backend(scene: mslab.Scene, method: str, n_steps: int) -> str:
     The warm-up run then pays that backend's first-call costs (numba compiles or loads only
     where the timed run repays it), so the timed run's wall time holds none of them.
     """
-    from mslab import fast
+    from mslab import fast, jit
 
     integrator = mslab.get_method(method)
     applies = fast.unsupported(scene.system, integrator) is None
-    return "numba" if applies and fast.worth_compiling(scene.system, integrator, n_steps) else "numpy"
+    compiled = applies and jit.available() and fast.worth_compiling(scene.system, integrator, n_steps)
+    return "numba" if compiled else "numpy"
 
 
 def warm_up(scene: mslab.Scene, method: str, dt: float, backend: str, steps: int = 10) -> float:

@@ -86,3 +86,31 @@ def test_numpy_path_needs_neither_numba_nor_cvxopt(method):
     """)
     here = mslab.simulate(mslab.load_scene("chain"), method, dt=0.01, t_end=0.5, backend="numpy")
     np.testing.assert_allclose(np.array(out["x"]), here.x[-1], rtol=0, atol=1e-10)
+
+
+def test_sweeps_fall_back_to_numpy():
+    """A job long enough to compile (a convergence study, an energy-drift comparison, a work-precision
+    diagram) steps numpy without numba, with one notice (it asked for the compiled loop before)."""
+    out = _without_numba("""
+        import warnings
+        import mslab
+        from mslab.fast.job import job_backends, rhs_backend
+        from mslab.precision import energy_drift
+        from mslab.scenes import chain
+        scene = chain()
+        runs = [(mslab.get_method("rk4"), 10**6)]
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            backends = job_backends(scene.system, runs)
+            drift = energy_drift(scene, ["symplectic_euler"], dt=1e-3, t_end=0.05, n_save=10, warm_up=False)
+        out = {"backends": backends, "rhs": rhs_backend(scene.system, backends),
+               "notes": [str(w.message) for w in seen if w.category is mslab.errors.PerformanceWarning],
+               "error": drift["symplectic_euler"].error.tolist()}
+    """)
+    assert out["backends"] == ["numpy"] and out["rhs"] == "numpy"
+    assert len(out["notes"]) == 1 and "numba is not installed" in out["notes"][0]
+    from mslab.precision import energy_drift
+    from mslab.scenes import chain
+    numpy = energy_drift(chain(), ["symplectic_euler"], dt=1e-3, t_end=0.05, n_save=10, warm_up=False,
+                         backend="numpy")
+    assert out["error"] == numpy["symplectic_euler"].error.tolist()  # the numpy loop's run, bit for bit

@@ -16,6 +16,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 from typing import TYPE_CHECKING
 
+from mslab import jit
 from mslab.fast import LOAD_SECONDS, check_backend, forces_reason, numpy_seconds, unsupported
 
 if TYPE_CHECKING:
@@ -36,7 +37,8 @@ def job_backends(system: System, runs: Iterable[tuple[Integrator, int]],
     backend : {"auto", "numba", "numpy"}, optional
         The job's backend (None: ``$MSLAB_BACKEND`` or ``"auto"``). ``"numba"`` and
         ``"numpy"`` are kept as asked (``"numba"`` still refuses, run by run, where the
-        compiled loop does not apply); ``"auto"`` is decided for the whole job.
+        compiled loop does not apply); ``"auto"`` is decided for the whole job (the numpy loop, with one
+        ``PerformanceWarning``, where numba is not installed).
     """
     runs = list(runs)
     name = check_backend(backend)
@@ -46,6 +48,9 @@ def job_backends(system: System, runs: Iterable[tuple[Integrator, int]],
     total = sum(numpy_seconds(system, integrator, n) for (integrator, n), ok in zip(runs, able, strict=True)
                 if ok)
     compiled = total > LOAD_SECONDS
+    if compiled and not jit.available():  # numba missing: the numpy loop, with one warning what it costs
+        jit.without_numba(name)
+        compiled = False
     return ["numba" if ok and compiled else "numpy" for ok in able]
 
 
@@ -58,5 +63,5 @@ def rhs_backend(system: System, backends: list[str], backend: str | None = None)
     of a work-precision diagram compare solvers on the same forces at the same speed.
     """
     name = check_backend(backend)
-    wanted = name == "numba" or (name == "auto" and "numba" in backends)
+    wanted = name == "numba" or (name == "auto" and "numba" in backends and jit.available())
     return "numba" if wanted and forces_reason(system) is None else "numpy"
