@@ -275,32 +275,13 @@ def _backing(comments: list[re.Match], defined: set[str]) -> tuple[list[str] | N
     return None, (f"no-claim names claims {named}: back the sentence with them" if named else None)
 
 
-#: lessons whose sentences are not yet converted to claims that carry their numbers (issue 36,
-#: open): checked by the earlier rule only — every sentence with a number, magnitude or verdict
-#: word backed by a comment, every named claim defined and holding — not number by number
-NOT_YET_CARRIED = ("10_your_own_integrator",)
-
-
-#: the earlier rule's verdict words (for :data:`NOT_YET_CARRIED` only)
-EARLIER_VERDICT = re.compile(
-    r"\b(bounded|unbounded|drift(?:s|ing|ed)?|stable|unstable|faster|slower|cheaper|dearer|"
-    r"times|orders?|more accurate|less accurate|better|worse|twice|halves|halving|doubles|"
-    r"\w+fold|grows?|shrinks?|blows? up)\b", re.IGNORECASE)
-
-
-def _needed_before(blank: str) -> bool:
-    """The earlier rule: a digit outside equations and code, or one of :data:`EARLIER_VERDICT`."""
-    return bool(re.search(r"\d", blank) or EARLIER_VERDICT.search(blank))
-
-
 def check_markdown(path: Path, index: int, text: str, defined: set[str],
                    holding: dict[str, Printed]) -> list[Finding]:
     """Findings of one markdown cell."""
     found = []
-    carried = path.stem not in NOT_YET_CARRIED
     for comment in COMMENT.finditer(text):
         problem = _backing([comment], defined)[1]
-        if problem and carried:
+        if problem:
             found.append(Finding(path, index, f"{comment.group(0)} [{problem}]"))
         if comment.group(1) == "claim":
             for cid in filter(None, (s.strip() for s in comment.group(2).split(","))):
@@ -317,11 +298,11 @@ def check_markdown(path: Path, index: int, text: str, defined: set[str],
             comments = list(COMMENT.finditer(text, s0, s1)) or list(COMMENT.finditer(lead or ""))
             sentence = " ".join(text[s0:s1].split())
             if not comments:
-                if _needs_backing(numeric[s0:s1]) if carried else _needed_before(blank[s0:s1]):
+                if _needs_backing(numeric[s0:s1]):
                     found.append(Finding(path, index, sentence))
                 continue
             ids = _backing(comments, defined)[0]
-            if ids and carried:
+            if ids:
                 claims = [holding[cid] for cid in ids if cid in holding]
                 found += [Finding(path, index, f"{sentence} [{p}]")
                           for p in disagreements(numeric[s0:s1], claims)] if claims else []
