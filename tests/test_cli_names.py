@@ -16,6 +16,7 @@ import pytest
 
 from mslab.cli import main
 from mslab.files import MAX_STEM, file_stem, name_problem
+from tests.test_hostile import _one_line
 
 PENDULUM = (Path(__file__).parents[1] / "mslab" / "scenes" / "pendulum.toml").read_text()
 
@@ -36,25 +37,16 @@ def hostile_scene(tmp_path: Path, name: str) -> Path:
     return scene_file
 
 
-def one_error_line(capsys, argv: list[str]) -> str:
-    code = main(argv)
-    out, err = capsys.readouterr()
-    lines = err.splitlines()
-    assert code == 2 and len(lines) == 1 and lines[0].startswith("mslab: error: "), (code, err)
-    assert "Traceback" not in err and out == ""
-    return lines[0]
-
-
 @pytest.mark.parametrize("name", REFUSED, ids=range(len(REFUSED)))
 def test_validate_refuses_what_run_refuses_in_one_line_before_any_work(tmp_path, name, capsys):
     """Fails on the old code: validate said ok (and run sanitised) for every one of these names."""
     scene_file = hostile_scene(tmp_path, name)
     out = tmp_path / "deep" / "out"
     before = files_under(tmp_path)
-    seen = one_error_line(capsys, ["validate", str(scene_file), "--no-timing"])
+    seen = _one_line(capsys, ["validate", str(scene_file), "--no-timing"])
     assert seen.startswith(f"mslab: error: {scene_file}: scene.name: "), seen
     assert len(seen) < 300
-    ran = one_error_line(capsys, ["run", str(scene_file), "--t-end", "0.02", "--dt", "0.01",
+    ran = _one_line(capsys, ["run", str(scene_file), "--t-end", "0.02", "--dt", "0.01",
                                   "--out", str(out)])
     assert ran == seen  # the same rule, the same line
     assert files_under(tmp_path) == before and not out.exists()
@@ -90,5 +82,5 @@ def test_a_default_name_from_the_file_name_follows_the_same_rule(tmp_path, capsy
     """A scene without ``name`` is named after its file: a hidden file's stem is refused, saying so."""
     scene_file = tmp_path / ".hidden.toml"
     scene_file.write_text(PENDULUM.replace('name = "pendulum"\n', ""))
-    line = one_error_line(capsys, ["validate", str(scene_file), "--no-timing"])
+    line = _one_line(capsys, ["validate", str(scene_file), "--no-timing"])
     assert "scene.name: '.hidden' must not start with '.'" in line and "set [scene] name" in line
