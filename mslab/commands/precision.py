@@ -19,9 +19,11 @@ from typing import TYPE_CHECKING
 from mslab.commands.common import (
     CommandError,
     add_common_options,
+    count,
     emit_json,
     fmt,
     method_list,
+    number,
     out_dir,
     resolve_scene,
     say,
@@ -42,17 +44,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("scene", metavar="SCENE", help="built-in scene name, TOML file, or 'oscillator'")
     p.add_argument("--methods", nargs="+", metavar="M",
                    help="methods (default: the course's; list: `mslab methods`)")
-    p.add_argument("--dts", nargs="+", type=float, metavar="DT",
+    p.add_argument("--dts", nargs="+", type=number(positive=True), metavar="DT",
                    help="steps (default: the scene's dt times 16, 8, 4, 2, 1); each must divide t_end")
-    p.add_argument("--t-end", type=float, default=None, help="end time (default: the scene's)")
+    p.add_argument("--t-end", type=number(positive=True), default=None,
+                   help="end time (default: the scene's)")
     p.add_argument("--scipy", nargs="*", metavar="S", default=None,
                    help="solve_ivp methods (default: RK45 DOP853 Radau BDF; give none to leave scipy out)")
-    p.add_argument("--rtols", nargs="+", type=float, metavar="RTOL", help="scipy tolerance sweep")
+    p.add_argument("--rtols", nargs="+", type=number(positive=True), metavar="RTOL",
+                   help="scipy tolerance sweep")
     p.add_argument("--no-timing", action="store_true", help="errors and counts only (much faster)")
-    p.add_argument("--repeats", type=int, default=3, help="timed runs per record, minimum kept (default 3)")
-    p.add_argument("--budget", type=float, default=1.0,
+    p.add_argument("--repeats", type=count(1), default=3,
+                   help="timed runs per record, minimum kept (default 3)")
+    p.add_argument("--budget", type=number(minimum=0), default=1.0,
                    help="seconds of timed runs per record before stopping early (default 1)")
-    p.add_argument("--jobs", type=int, default=1,
+    p.add_argument("--jobs", type=count(1), default=1,
                    help="processes for the error runs; timings stay serial (default 1)")
     add_common_options(p)
     p.set_defaults(func=run)
@@ -64,8 +69,6 @@ def run(args: argparse.Namespace) -> int:
     from mslab.integrators.base import get_method
     from mslab.simulate import step_count
 
-    if args.jobs < 1 or args.repeats < 1 or not 0 <= args.budget < float("inf"):
-        raise CommandError("--jobs and --repeats must be >= 1, --budget a finite number >= 0")
     for rtol in args.rtols or ():  # scipy's own limits: > 100 eps (else it clamps with a warning), < 1
         if not 2.3e-14 <= rtol < 1:
             raise CommandError(f"{rtol:g} is not a tolerance; give numbers between 2.3e-14 and 1",
