@@ -23,6 +23,7 @@ COMMANDS = ("scenes", "methods", "run", "compare", "precision", "stability", "va
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str):  # argparse's own usage errors: one line, exit 2
+        message = message.removeprefix("argument ")  # "--dt: must be > 0, got -1.0"
         self.exit(2, f"mslab: error: {message}\n")
 
 
@@ -67,7 +68,12 @@ def _main(argv: list[str] | None) -> int:
     for line in take_broken():  # a method or effect file that failed to load: the rest works
         print(f"mslab: warning: {line} (file skipped)", file=sys.stderr)
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as done:  # a usage error (already printed as one line) returns its code
+        if done.code in (0, None):  # --help, --version: argparse's own exit
+            raise
+        return int(done.code) if isinstance(done.code, int) else 2
     if not getattr(args, "func", None):
         parser.print_help()
         return 2

@@ -97,19 +97,47 @@ def output_problem(folder: str | Path, need_bytes: int = 0) -> str | None:
     return None
 
 
-#: longest file-name stem made from a scene name (with ``_energy.png`` the name stays far below 255 bytes)
+#: longest scene name that becomes a file-name stem (with ``_energy.png`` far below 255 bytes)
 MAX_STEM = 100
 
 
-def file_stem(name: object) -> str:
-    r"""Return a safe file-name stem for a scene ``name``: a name, never a path.
+def name_problem(name: object) -> str | None:
+    r"""Say why a scene ``name`` cannot become an output file name (None: it can).
 
-    Characters other than letters, digits, ``-``, ``_`` and ``.`` become ``_`` (so ``/``,
-    ``\``, NUL and control characters cannot make a path), leading dots are dropped (no
-    ``..``, no hidden file), the stem is cut to :data:`MAX_STEM` characters, and an empty
-    result is ``scene``. Every file written from it stays in the folder it is joined to.
+    The one rule of what a scene name may be, read by the scene loader (so ``mslab validate``
+    refuses what ``mslab run`` would refuse) and by :func:`file_stem`: a non-empty string of at
+    most :data:`MAX_STEM` characters that is not a path (no ``/`` or ``\``, not ``.`` or
+    ``..``, no leading dot) and holds no control character (NUL, newline, ...).
+    """
+    if not isinstance(name, str):
+        return f"must be a string, got {type(name).__name__}"
+    if not name:
+        return "must not be empty (output files are named after it)"
+    if len(name) > MAX_STEM:
+        return f"is {len(name)} characters long, more than {MAX_STEM} (output files are named after it)"
+    if "/" in name or "\\" in name:
+        return "is a name, not a path: no '/' or '\\' (output files are named after it)"
+    if name.startswith("."):
+        return "must not start with '.' (output files are named after it: '..' or a hidden file)"
+    bad = next((c for c in name if ord(c) < 32 or ord(c) == 127), None)
+    if bad is not None:
+        return f"holds the control character {bad!r} (output files are named after it)"
+    return None
+
+
+def file_stem(name: object) -> str:
+    """Return the file-name stem of the outputs of scene ``name``: a name, never a path.
+
+    A name :func:`name_problem` refuses raises ``ValueError`` naming the reason; in an accepted
+    name every character other than letters, digits, ``-``, ``_`` and ``.`` becomes ``_``
+    (spaces, accents, ``$``, ``~``, ``:``), so every file written from the stem stays in the
+    folder it is joined to.
     """
     import re
 
-    stem = re.sub(r"[^A-Za-z0-9._-]", "_", str(name)).lstrip(".")[:MAX_STEM].rstrip(".")
-    return stem or "scene"
+    problem = name_problem(name)
+    if problem:
+        from mslab.checks import shown
+
+        raise ValueError(f"scene name {shown(name)}: {problem}")
+    return re.sub(r"[^A-Za-z0-9._-]", "_", str(name))

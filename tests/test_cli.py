@@ -67,7 +67,7 @@ def test_bad_options_exit_2(capsys):
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 3 and all(line.startswith("mslab: error: ") for line in err)
     assert "run.method" in err[0] and "valid methods" in err[0]
-    assert "run.dt" in err[1]
+    assert "--dt: must be > 0, got -1.0" in err[1]
     assert "built-in scenes" in err[2]
 
 

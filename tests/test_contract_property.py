@@ -4,6 +4,9 @@ a RecursionError or a numpy error from deep inside."""
 
 from __future__ import annotations
 
+import contextlib
+import io
+
 import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -45,3 +48,59 @@ def test_hostile_values_to_simulate_raise_only_type_or_value_errors(dt, t_end, s
                        backend="numpy", check_stability=False)
     except (TypeError, ValueError, StepFailure, InstabilityError):
         pass
+
+
+# -- the command line's numeric options: the same checks (mslab.checks), one line, exit 2 ------------------
+#: (command words before the option, option, attribute, what a value must be): "positive" a finite
+#: number > 0, a number ">= m", or a whole number "count >= m"
+CLI_OPTIONS = [(["run", "pendulum"], "--dt", "dt", "positive"),
+               (["run", "pendulum"], "--t-end", "t_end", "positive"),
+               (["run", "pendulum"], "--save-every", "save_every", "count >= 1"),
+               (["validate", "pendulum"], "--dt", "dt", "positive"),
+               (["compare", "pendulum"], "--dt", "dt", "positive"),
+               (["compare", "pendulum"], "--t-end", "t_end", "positive"),
+               (["precision", "oscillator"], "--dts", "dts", "positive"),
+               (["precision", "oscillator"], "--t-end", "t_end", "positive"),
+               (["precision", "oscillator"], "--rtols", "rtols", "positive"),
+               (["precision", "oscillator"], "--repeats", "repeats", "count >= 1"),
+               (["precision", "oscillator"], "--jobs", "jobs", "count >= 1"),
+               (["precision", "oscillator"], "--budget", "budget", ">= 0"),
+               (["grade", "sub"], "--timeout", "timeout", ">= 0.1"),
+               (["grade", "sub"], "--memory", "memory", "count >= 64"),
+               (["grade", "sub"], "--jobs", "jobs", "count >= 1")]
+
+ODD = ["nan", "NaN", "-nan", "inf", "-inf", "1e999", "-1", "0", "-0", "0.0", "1.5", "1e3", "True", "", " ",
+       "0x10", "1_000", "abc", "2", "64", "0.05", "1e-300"]
+WORDS = st.one_of(st.sampled_from(ODD),
+                  st.floats().map(repr), st.integers(-10**30, 10**30).map(str), st.text(max_size=8))
+
+
+def accepted(value: object, rule: str) -> bool:
+    """Whether ``value`` is what ``rule`` asks for: an exact int for a count, a finite float otherwise."""
+    if rule.startswith("count"):
+        return type(value) is int and value >= int(rule.split()[-1])
+    if type(value) is not float or not np.isfinite(value):
+        return False
+    return value > 0 if rule == "positive" else value >= float(rule.split()[-1])
+
+
+@settings(max_examples=300, deadline=None)
+@given(case=st.sampled_from(CLI_OPTIONS), word=WORDS)
+def test_hostile_option_values_are_refused_in_one_line_or_are_valid(case, word):
+    """Fails on the old code: argparse's type=float let nan, inf and negatives through to the commands."""
+    from mslab.cli import build_parser, main
+
+    before, option, attribute, rule = case
+    argv = [*before, f"{option}={word}"]
+    with contextlib.redirect_stderr(io.StringIO()) as err:
+        try:
+            args = build_parser().parse_args(argv)
+        except SystemExit as done:
+            assert done.code == 2
+            line = err.getvalue()
+            assert line.startswith(f"mslab: error: {option}: ") and line.count("\n") == 1, line
+            assert main(argv) == 2 and err.getvalue() == 2 * line  # main returns the code, same line
+            return
+    value = getattr(args, attribute)
+    for one in value if isinstance(value, list) else [value]:
+        assert accepted(one, rule), (argv, one)

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -13,7 +15,6 @@ import numpy as np
 from mslab.files import atomic_write  # noqa: F401  (the commands import it from here)
 
 if TYPE_CHECKING:
-    import argparse
     from collections.abc import Sequence
 
     from matplotlib.figure import Figure
@@ -113,12 +114,52 @@ def method_help(what: str = "integrator") -> str:
     return f"{what}: {', '.join(methods())} (details: `mslab methods`)"
 
 
+def number(**limits: Any) -> Callable[[str], float]:
+    """Return an argparse ``type=`` reading a real number through :func:`mslab.checks.real`.
+
+    ``limits``: ``positive``, ``minimum``, ``allow_inf`` as there; NaN, an infinity and a word
+    that is no number are refused. Command-line numbers pass the same checks as the API's
+    arguments, and a refusal is argparse's one line ``mslab: error: --OPTION: reason``.
+    """
+    from mslab.checks import real
+
+    return _option(float, lambda value: real("", value, **limits), "number")
+
+
+def count(minimum: int = 1) -> Callable[[str], int]:
+    """Return an argparse ``type=`` reading a whole number ``>= minimum`` through :func:`mslab.checks.whole`.
+
+    ``1.5`` or ``1e3`` is refused, not rounded.
+    """
+    from mslab.checks import whole
+
+    return _option(int, lambda value: whole("", value, minimum), "whole number")
+
+
+def _option(parse: Callable[[str], Any], check: Callable[[Any], Any], what: str) -> Callable[[str], Any]:
+    from mslab.checks import shown
+
+    def read(word: str) -> Any:
+        try:
+            value = parse(word)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be a {what}, got {shown(word)}") from None
+        try:
+            return check(value)
+        except (TypeError, ValueError) as err:  # the checks' message, less the (empty) argument name
+            raise argparse.ArgumentTypeError(str(err).strip()) from None
+
+    read.__name__ = what
+    return read
+
+
 def add_settings_options(p: argparse.ArgumentParser) -> None:
     """Add ``--method --dt --t-end --save-every``, which override the scene file's [run] settings."""
     p.add_argument("--method", default=None, metavar="METHOD", help=method_help())
-    p.add_argument("--dt", type=float, default=None, help="time step [s]")
-    p.add_argument("--t-end", dest="t_end", type=float, default=None, help="end time [s]")
-    p.add_argument("--save-every", dest="save_every", type=int, default=None, help="keep every n-th step")
+    p.add_argument("--dt", type=number(positive=True), default=None, help="time step [s]")
+    p.add_argument("--t-end", dest="t_end", type=number(positive=True), default=None, help="end time [s]")
+    p.add_argument("--save-every", dest="save_every", type=count(1), default=None,
+                   help="keep every n-th step")
 
 
 def save_figure(fig: Figure, path: str | Path) -> Path:

@@ -23,6 +23,7 @@ from mslab.commands.common import (
     emit_json,
     fmt,
     method_list,
+    number,
     out_dir,
     resolve_scene,
     say,
@@ -50,8 +51,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("scene", metavar="SCENE", help="built-in scene name, TOML file, or 'oscillator'")
     p.add_argument("--methods", nargs="+", metavar="M",
                    help="methods (default: every course method; list: `mslab methods`)")
-    p.add_argument("--dt", type=float, default=None, help="step (default: the scene's)")
-    p.add_argument("--t-end", type=float, default=None,
+    p.add_argument("--dt", type=number(positive=True), default=None, help="step (default: the scene's)")
+    p.add_argument("--t-end", type=number(positive=True), default=None,
                    help="end time (default: 10 times the scene's: drift shows only over long runs)")
     add_common_options(p)
     p.set_defaults(func=run)

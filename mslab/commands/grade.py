@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import math
 import os
 import sys
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from mslab.commands.common import CommandError, add_common_options, emit_json, say
+from mslab.commands.common import CommandError, add_common_options, count, emit_json, number, say
 from mslab.grading.autograde import SubmissionResult, grade
 from mslab.grading.isolation import DESCRIPTION
 from mslab.grading.layout import default_source
@@ -51,11 +50,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="record each result as it arrives (default with --csv: FILE.journal)")
     p.add_argument("--resume", action="store_true",
                    help="continue an interrupted grading from its journal")
-    p.add_argument("--timeout", type=float, default=10.0, metavar="S",
+    p.add_argument("--timeout", type=number(minimum=MIN_TIMEOUT), default=10.0, metavar="S",
                    help="CPU seconds per test, all the sandbox's processes together (default 10; "
                         "a wall-clock backstop of 5x+10 s)")
-    p.add_argument("--memory", type=int, default=1024, metavar="MB", help="memory limit of student code")
-    p.add_argument("--jobs", type=int, default=None, metavar="N", help="parallel runners (default: cores)")
+    p.add_argument("--memory", type=count(MIN_MEMORY), default=1024, metavar="MB",
+                   help="memory limit of student code")
+    p.add_argument("--jobs", type=count(1), default=None, metavar="N",
+                   help="parallel runners (default: cores)")
     p.add_argument("--exercise", action="append", default=None, metavar="NAME",
                    help="grade only this exercise (repeatable)")
     p.add_argument("--layout", default="auto", choices=["auto", "class", "submission"],
@@ -96,12 +97,6 @@ class Progress:
 
 def _check_options(args: argparse.Namespace) -> None:
     """Refuse bad limits and gradebook paths in one line, before anything runs."""
-    limits = (("--timeout", args.timeout, MIN_TIMEOUT), ("--memory", args.memory, MIN_MEMORY))
-    for key, value, least in limits:
-        if not math.isfinite(value) or value < least:
-            raise CommandError(f"must be a finite number of at least {least:g}, not {value!r}", key=key)
-    if args.jobs is not None and args.jobs < 1:
-        raise CommandError("must be at least 1", key="--jobs")
     try:
         check_format(args.format, args.csv, len(args.submissions), args.assignment)
     except ValueError as err:

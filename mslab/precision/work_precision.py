@@ -101,12 +101,48 @@ def work_precision(scene: Scene, methods: Sequence[str | Integrator],
     n_timed = len(tasks) if timing else 0
     bar, owned = _progress_bar(len(tasks) + n_timed, progress, f"precision {scene.name}")
     try:
-        records = _records(tasks, _run_tasks(tasks, jobs, bar), ref)
-        if timing:
-            _time_records(scene, tasks, records, t_end, atol, repeats, budget, jobs > 1, bar)
+        return _sweep(scene, tasks, ref, t_end, atol, timing, repeats, budget, jobs, bar)
     finally:
         if owned:
             bar.close()
+
+
+class PrecisionInterrupted(KeyboardInterrupt):
+    """Ctrl-C during :func:`work_precision`: ``.records`` of the methods finished, ``.methods`` their names.
+
+    A method (or scipy solver, named ``"scipy:RK45"``) is finished when every one of its runs
+    has its error and, with timing, its wall time; ``.total`` is how many the sweep had.
+    """
+
+    def __init__(self, records: list[dict], methods: list[str], total: int):
+        super().__init__("interrupted")
+        self.records, self.methods, self.total = records, methods, total
+
+
+def _sweep(scene: Scene, tasks: list, ref: Reference, t_end: float, atol: float | None, timing: bool,
+           repeats: int, budget: float, jobs: int, bar: Any) -> list[dict]:
+    """Run the tasks method by method: each method's error runs, then its timed runs.
+
+    Serial error runs go method by method, so a Ctrl-C keeps every method finished before it
+    (:class:`PrecisionInterrupted`); parallel ones run in one pool first. The records come in
+    the order of ``tasks`` either way, and each equals what the same run gives alone.
+    """
+    groups: dict[str, list[int]] = {}
+    for i, (kind, _, name, *_) in enumerate(tasks):
+        groups.setdefault(name if kind == "mslab" else f"scipy:{name}", []).append(i)
+    records: list[dict] = []
+    finished: list[str] = []
+    try:
+        runs = _run_tasks(tasks, jobs, bar) if jobs > 1 else None
+        for label, indices in groups.items():
+            chosen = [tasks[i] for i in indices]
+            done = _records(chosen, [runs[i] for i in indices] if runs else _run_tasks(chosen, 1, bar), ref)
+            if timing:
+                _time_records(scene, chosen, done, t_end, atol, repeats, budget, jobs > 1, bar)
+            records.extend(done)
+            finished.append(label)
+    except KeyboardInterrupt:
+        raise PrecisionInterrupted(records, finished, len(groups)) from None
     return records
 
 

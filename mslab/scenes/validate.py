@@ -15,8 +15,10 @@ from dataclasses import replace
 
 import numpy as np
 
+from mslab.checks import shown
 from mslab.effects.schema import check_keys, integer, string
 from mslab.errors import SceneError
+from mslab.files import name_problem
 from mslab.scene import Scene, Settings
 from mslab.scenes.bodies import PARTICLE_KEYS, add_body
 from mslab.scenes.builder import SceneBuilder
@@ -138,6 +140,10 @@ def _build(doc: Mapping, default_name: str, overrides: Mapping) -> Scene:
     scene = SceneBuilder.check_table(doc.get("scene", {}), "scene")
     check_keys(scene, SCENE_KEYS, "scene.")
     name = string(scene.get("name", default_name), "scene.name")
+    problem = name_problem(name)  # the rule `mslab run` names its output files by
+    if problem:
+        given = "" if "name" in scene else " (taken from the file's name; set [scene] name)"
+        raise SceneError("scene.name", f"{shown(name)} {problem}{given}")
     description = string(scene.get("description", ""), "scene.description")
     dim = integer(scene.get("dim", 2), "scene.dim")
     if dim not in (1, 2, 3):

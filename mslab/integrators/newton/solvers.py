@@ -13,7 +13,9 @@ Both find the stage velocities ``V_i`` of ``X_i = x_n + h sum_j A_ij V_j``,
   undamped cloth at dt = 1/30 converges); otherwise full Newton steps first (stiff springs
   need them), then after ``full_steps`` iterations a backtracking line search halves the
   step until the residual falls (a contact switching on and off makes the iterates cycle
-  otherwise). A full tableau couples all stages in one system with blocks
+  otherwise); when that fails, a damped Newton (Armijo on ``|r|^2`` from the first iteration,
+  :mod:`mslab.integrators.newton.damped`) tries again. A full tableau couples all stages in
+  one system with blocks
   ``delta_ik I - h sum_j A_ij M^-1 (h K_j A_jk + D_j delta_jk)``, factored afresh per
   iteration (dense LAPACK, or SuperLU above ``DENSE_MAX`` unknowns;
   :mod:`mslab.integrators.newton.coupled`).
@@ -126,6 +128,31 @@ def newton_stage(system: System, xh: np.ndarray, vh: np.ndarray, c: float, tol: 
                  hessian: str = "exact") -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """Solve one implicit Euler-like stage ``V - v^ - c a(x^ + c V, V) = 0`` by Newton's method.
 
+    :func:`_plain_stage` first (below). When it fails on forces that derive from no objective
+    (a wind, a velocity-dependent damper: the residual backtracking of :func:`_backtrack` is
+    its only globalisation), a damped Newton (:mod:`mslab.integrators.newton.damped`) starts
+    again from ``V = v^``: exact directions and Armijo's backtracking on ``|r|^2`` from the first
+    iteration. It runs only after a failure, so every stage plain Newton solves is solved
+    exactly as before (bitwise); its work is counted on top of the failed attempt's.
+    Returns ``(X, V, a, power)``; raises the first attempt's StepFailure when both fail.
+    """
+    try:
+        return _plain_stage(system, xh, vh, c, tol, max_iter, policy, linearised, full_steps, hessian)
+    except StepFailure:
+        if linearised or variational(system):
+            raise
+        from mslab.integrators.newton.damped import DAMPED_ITER, damped_stage
+
+        point = damped_stage(system, xh, vh, c, tol, DAMPED_ITER * max_iter, policy, hessian)
+        if point is None:
+            raise
+        return point
+
+
+def _plain_stage(system: System, xh: np.ndarray, vh: np.ndarray, c: float, tol: float, max_iter: int,
+                 policy: str, linearised: bool, full_steps: int, hessian: str) -> tuple:
+    """Solve one stage by Newton's method with the globalisation described here.
+
     Directions from :class:`mslab.integrators.newton.linear.StageSolver` (factorisations kept
     under ``policy``). Globalisation (:func:`_search`): when the forces derive from implicit
     Euler's objective (:func:`objective`) an Armijo line search on it (a shifted definite
@@ -179,7 +206,7 @@ def newton_stage(system: System, xh: np.ndarray, vh: np.ndarray, c: float, tol: 
         plain = du is None and stalled >= STALLED  # (None: CHOLMOD found A not positive definite)
         du = (du if du is not None else solver.indefinite_direction(r.ravel()) if plain
               else solver.shifted_direction(r.ravel())).reshape(V.shape)
-        floor = 8.0 * np.finfo(float).eps * solver.row_sum / c * _scale(point[0]) if solver.row_sum else 0.0
+        floor = _floor(solver, c, point[0])
         if linearised:
             counters.n_iter += 1
             return residual(V + du)[1]
@@ -201,6 +228,11 @@ def newton_stage(system: System, xh: np.ndarray, vh: np.ndarray, c: float, tol: 
     counters.n_iter += it
     raise StepFailure(f"Newton iteration did not converge in {max_iter} iterations: {why} "
                       f"(tolerance {max(tol, floor):.2e}); try a smaller dt")
+
+
+def _floor(solver: StageSolver, c: float, X: np.ndarray) -> float:
+    """Return the residual round-off leaves at positions ``X``: ``8 eps`` times the matrix's row sum."""
+    return 8.0 * np.finfo(float).eps * solver.row_sum / c * _scale(X) if solver.row_sum else 0.0
 
 
 def _search(solver: StageSolver, residual: Callable, phi: Callable | None, point: tuple, V: np.ndarray,
