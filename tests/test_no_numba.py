@@ -114,3 +114,21 @@ def test_sweeps_fall_back_to_numpy():
     numpy = energy_drift(chain(), ["symplectic_euler"], dt=1e-3, t_end=0.05, n_save=10, warm_up=False,
                          backend="numpy")
     assert out["error"] == numpy["symplectic_euler"].error.tolist()  # the numpy loop's run, bit for bit
+
+
+NEEDS_NUMBA = {"03_verlet_leapfrog", "04_implicit_euler", "06_energy_drift", "07_work_precision"}
+
+
+def test_a_lesson_that_needs_numba_says_so_in_its_first_cell():
+    """Measured in a venv without numba (README, "mslab without numba"): every other lesson passes there
+    within its 60 s; these four time the compiled loop (``backend="numba"``), or run long or chaotic
+    runs whose stored outputs are the compiled loop's. Each says so in its first cell, and a lesson
+    that asks for ``backend="numba"`` in code must be one of them."""
+    from pathlib import Path
+
+    for path in sorted((Path(__file__).resolve().parents[1] / "lessons").glob("[0-9][0-9]_*.ipynb")):
+        cells = [("".join(c["source"]), c["cell_type"]) for c in json.loads(path.read_text())["cells"]]
+        says = "**Needs numba**" in cells[0][0]
+        asks = any('backend="numba"' in source for source, kind in cells if kind == "code")
+        assert says == (path.stem in NEEDS_NUMBA), path.stem
+        assert says or not asks, f"{path.stem} asks for backend='numba' without saying it needs numba"
