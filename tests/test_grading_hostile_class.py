@@ -474,8 +474,10 @@ def test_nothing_is_left(graded):
 
 
 def test_the_warning_names_the_mode_in_force(graded):
-    if not graded["mode"].startswith("rlimits"):
-        return
     warnings = [ln for ln in graded["proc"].stderr.splitlines() if "warning" in ln]
-    assert any("rlimits" in ln for ln in warnings), graded["proc"].stderr[-2000:]
-
+    isolations = {d["isolation"] for d in _docs(graded).values()}
+    if graded["mode"].startswith("rlimits"):
+        assert any("isolation is rlimits (chosen with --isolation rlimits)" in w for w in warnings), warnings
+    else:
+        assert not any("rlimits" in ln for ln in warnings), warnings
+        assert all(i.startswith("isolated by") for i in isolations), isolations
