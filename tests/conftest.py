@@ -26,6 +26,7 @@ LONGEST_FIRST = (
     "tests/test_precision.py",
     "tests/test_integrators.py",
     "tests/test_session.py",
+    "tests/test_grading_hostile_class.py",
     "tests/test_grading.py",
     "lessons/06_energy_drift.ipynb",
     "tests/test_stability.py",

@@ -130,57 +130,7 @@ def test_public_tests_run_locally_on_the_release(released, tmp_path):
     assert f"{publics[other]} failed, {publics[TARGET]} passed" in proc.stdout, proc.stdout[-2000:]
 
 
-# -- grading: reference solutions and the untouched release -----------------------------------
-
-@pytest.fixture(scope="module")
-def graded(released, tmp_path_factory):
-    """``mslab grade`` on a class folder: the reference solutions and the release."""
-    cls = tmp_path_factory.mktemp("class")
-    shutil.copytree(SOURCE, cls / "reference", ignore=shutil.ignore_patterns("__pycache__"))
-    shutil.copytree(released, cls / "untouched")
-    csv_path = cls.parent / "gradebook.csv"
-    out = cls.parent / "grades.json"
-    import contextlib
-    import io
-
-    buf = io.StringIO()
-    with contextlib.redirect_stdout(buf):
-        code = cli_main(["grade", str(cls), "--source", str(SOURCE), "--json", "--csv", str(csv_path),
-                         "--timeout", "20", "--jobs", "2"])
-    assert code == 0
-    out.write_text(buf.getvalue())
-    doc = json.loads(buf.getvalue())
-    return {s["student"]: s for s in doc["submissions"]}, csv_path
-
-
-def test_reference_solutions_get_full_marks(graded):
-    ref = graded[0]["reference"]
-    failed = [(e["name"], t["test"], t["reason"])
-              for e in ref["exercises"] for t in e["tests"] if not t["passed"]]
-    assert failed == []
-    expected_max = sum(ex.max_points for ex in find_exercises(SOURCE))
-    assert ref["total"] == ref["max"] == expected_max
-
-
-def test_untouched_release_gets_zero(graded):
-    rel = graded[0]["untouched"]
-    assert rel["total"] == 0 and rel["max"] > 0
-    tests = [t for e in rel["exercises"] for t in e["tests"]]
-    public = {t["reason"] for t in tests if t["test"].startswith("test_public")}
-    hidden = {t["reason"] for t in tests if t["test"].startswith("test_hidden")}
-    assert all("NotImplementedError" in r for r in public), public
-    assert hidden == {"hidden test: raised an exception"}  # the runner's phrase, no sandbox text
-
-
-def test_gradebook_csv(graded):
-    results, csv_path = graded
-    lines = csv_path.read_text().splitlines()
-    header = lines[0].split(",")
-    assert header[:3] == ["student", "total", "max"] and len(header) == 3 + len(find_exercises(SOURCE))
-    rows = {line.split(",")[0]: line.split(",") for line in lines[1:]}
-    assert rows["reference"][1] == rows["reference"][2] == f"{results['reference']['max']:g}"
-    assert rows["untouched"][1] == "0"
-    assert not list(csv_path.parent.glob(".gradebook-*"))  # no temporary left behind
+# -- grading: reference solutions, the untouched release, the gradebook: tests/test_grading_trivial.py
 
 
 def test_grade_reports_clear_errors(tmp_path, capsys):

@@ -9,6 +9,7 @@ import fcntl
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -16,6 +17,7 @@ import zipfile
 from pathlib import Path
 
 import pytest
+from test_grading import _processes_with
 
 from mslab.cli import main as cli_main
 from mslab.commands import grade as grade_command
@@ -210,6 +212,10 @@ def test_a_zip_bomb_is_refused_unread(tmp_path):
 
 # -- graders side by side ---------------------------------------------------------------------------
 
+#: the mark in the command line of the first grader's holder
+HOLD = "mslab-hold-first-grader"
+
+
 @pytest.mark.skipif(os.geteuid() != 0 or not shutil.which("unshare"),
                     reason="needs root and unshare to start the second grader in a PID namespace of its own")
 def test_two_graders_in_two_pid_namespaces_over_one_temporary_folder(tmp_path):
@@ -220,8 +226,14 @@ def test_two_graders_in_two_pid_namespaces_over_one_temporary_folder(tmp_path):
     for cls in (first, second):
         (cls / "b_honest" / TARGET).mkdir(parents=True)
         shutil.copyfile(SOURCE / TARGET / MODULE, cls / "b_honest" / TARGET / MODULE)
-    (first / "a_spinner" / TARGET).mkdir(parents=True)  # holds the first runner while the second starts
-    (first / "a_spinner" / TARGET / MODULE).write_text("while True:\n    pass\n")
+    # holds the first runner while the second grader runs: its import waits (no CPU) for a marked
+    # child of its own, which the test ends once the second grader is done
+    (first / "a_holder" / TARGET).mkdir(parents=True)
+    (first / "a_holder" / TARGET / MODULE).write_text(
+        "import subprocess, sys\n"
+        f"code = 'import sys; sys.stdin.read() # {HOLD}'\n"
+        "subprocess.Popen([sys.executable, '-c', code], stdin=subprocess.PIPE).wait()\n"
+        "raise RuntimeError('held')\n")
     env = dict(os.environ, TMPDIR=str(tmp), PYTHONPATH=str(ROOT))
     cmd = [sys.executable, "-m", "mslab", "grade", "--source", str(SOURCE), "--exercise", TARGET,
            "--jobs", "1", "--json"]
@@ -229,20 +241,28 @@ def test_two_graders_in_two_pid_namespaces_over_one_temporary_folder(tmp_path):
                             text=True)
     try:
         deadline = time.monotonic() + 120
-        while not list(tmp.glob("mslab-grade-*/runner-*")) and proc.poll() is None:
-            assert time.monotonic() < deadline, "the first grader started no runner"
+        while not _processes_with(HOLD) and proc.poll() is None:
+            assert time.monotonic() < deadline, "the first grader's runner did not start its student"
             time.sleep(0.05)  # waits for a condition, not a duration
+        assert list(tmp.glob("mslab-grade-*/runner-*")), "the first grader has no runner folder"
         other = subprocess.run(["unshare", "--pid", "--fork", *cmd, str(second)], env=env,
                                capture_output=True, text=True, timeout=300)
+        assert proc.poll() is None and _processes_with(HOLD), "the first grader ended: this proved nothing"
+        while proc.poll() is None:  # release the holder (once per sandbox it starts)
+            for pid in _processes_with(HOLD):
+                os.kill(pid, signal.SIGKILL)
+            time.sleep(0.05)  # waits for a condition, not a duration
         out, err = proc.communicate(timeout=600)
     finally:
         proc.kill()
+        for pid in _processes_with(HOLD):
+            os.kill(pid, signal.SIGKILL)
     assert other.returncode == 0, other.stderr[-2000:]
     assert json.loads(other.stdout)["total"] == json.loads(other.stdout)["max"] > 0
     assert proc.returncode == 0, err[-2000:]
     results = {d["student"]: d for d in json.loads(out)["submissions"]}
     assert results["b_honest"]["total"] == results["b_honest"]["max"] > 0, results["b_honest"]
-    assert results["a_spinner"]["total"] == 0
+    assert results["a_holder"]["total"] == 0
     assert list(tmp.iterdir()) == []  # nothing left by either
 
 

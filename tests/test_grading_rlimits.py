@@ -174,3 +174,28 @@ def test_a_user_without_cgroups_has_a_process_cap_anyway():
                           capture_output=True, text=True, timeout=120, cwd="/")
     assert proc.returncode == 0, proc.stderr
     assert 0 < int(proc.stdout) <= MAX_PROCESSES  # 300 without the cap
+
+
+REAPED = """
+import os, subprocess, sys
+from mslab.grading import reaper
+
+assert reaper.become_subreaper()
+daemon = ("import os, time\\nos.setsid()\\nif os.fork():\\n    os._exit(0)\\n"
+          "print(os.getpid(), flush=True)\\ntime.sleep(10 ** 6)\\n")
+child = subprocess.Popen([sys.executable, "-c", daemon], stdout=subprocess.PIPE, text=True)
+pid = int(child.stdout.readline())
+child.wait()  # the daemon's parent is gone: the daemon is an orphan in a session of its own
+with open(f"/proc/{pid}/stat") as fh:
+    adopted = int(fh.read().rsplit(")", 1)[1].split()[1]) == os.getpid()
+reaper.kill_orphans()
+print(adopted, os.path.exists(f"/proc/{pid}"))
+"""
+
+
+def test_the_runner_kills_the_orphans_it_adopts():
+    """rlimits as a user, no cgroup: a daemon that left its sandbox's session (setsid, double fork)
+    is adopted by the runner (child subreaper) and killed with the sandbox group, not left to init."""
+    proc = subprocess.run([sys.executable, "-c", REAPED], capture_output=True, text=True, timeout=120,
+                          env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    assert proc.stdout.split() == ["True", "False"], proc.stdout + proc.stderr

@@ -1,19 +1,25 @@
-"""Trivial answers score what the untouched release scores: nothing.
+"""Trivial answers score what the untouched release scores: nothing; the reference scores everything.
 
 Zeros, "identity" steps that return their input, and functions that raise RuntimeError
 are graded for every exercise, next to a classmate with the reference solutions who must
-keep full marks (issue 10: weak tests accepted 14/98 of such answers).
+keep full marks (issue 10: weak tests accepted 14/98 of such answers). The same grading
+(``mslab grade --json --csv``, one class of five over the twelve exercises) checks the
+reference's full marks, the untouched release's zero and the gradebook CSV.
 """
 
 from __future__ import annotations
 
+import contextlib
+import io
+import json
 import re
 import shutil
 from pathlib import Path
 
 import pytest
 
-from mslab.grading import find_exercises, grade, release
+from mslab.cli import main as cli_main
+from mslab.grading import find_exercises, release
 
 SOURCE = Path(__file__).resolve().parents[1] / "exercises"
 
@@ -81,33 +87,73 @@ def trivial_version(text: str, strategy: str) -> str:
 
 
 @pytest.fixture(scope="module")
-def graded(tmp_path_factory):
+def graded_docs(tmp_path_factory) -> tuple[dict, Path]:
+    """``mslab grade`` on a class folder: the reference, the untouched release, the trivial answers."""
     base = tmp_path_factory.mktemp("trivial")
     released = base / "release"
     release(SOURCE, released)
     cls = base / "class"
-    shutil.copytree(SOURCE, cls / "victim", ignore=shutil.ignore_patterns("__pycache__", "test_*"))
+    shutil.copytree(SOURCE, cls / "reference", ignore=shutil.ignore_patterns("__pycache__", "test_*"))
     for strategy in STRATEGIES:
         shutil.copytree(released, cls / strategy)
         for ex in find_exercises(SOURCE):
             path = cls / strategy / ex.name / ex.module
             path.write_text(trivial_version(path.read_text(), strategy))
-    shutil.copytree(released, cls / "release")
-    return {r.student: r for r in grade([cls], source=SOURCE, jobs=2, timeout=10.0)}
+    shutil.copytree(released, cls / "untouched")
+    csv_path = base / "gradebook.csv"
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        code = cli_main(["grade", str(cls), "--source", str(SOURCE), "--json", "--csv", str(csv_path),
+                         "--timeout", "10", "--jobs", "2"])
+    assert code == 0
+    doc = json.loads(buf.getvalue())
+    return {d["student"]: d for d in doc["submissions"]}, csv_path
+
+
+@pytest.fixture(scope="module")
+def graded(graded_docs) -> dict:
+    return graded_docs[0]
+
+
+def _passed(doc: dict) -> list[tuple[str, str]]:
+    return [(e["name"], t["test"]) for e in doc["exercises"] for t in e["tests"] if t["passed"]]
 
 
 @pytest.mark.parametrize("strategy", STRATEGIES)
 def test_trivial_answers_score_no_more_than_the_release(graded, strategy):
     result = graded[strategy]
-    passed = [(e.name, t.test) for e in result.exercises for t in e.tests if t.passed]
-    assert graded["release"].total == 0
-    assert result.total <= graded["release"].total, passed
+    assert graded["untouched"]["total"] == 0
+    assert result["total"] <= graded["untouched"]["total"], _passed(result)
 
 
-def test_the_reference_keeps_full_marks_next_to_them(graded):
-    victim = graded["victim"]
-    failed = [(e.name, t.test, t.reason) for e in victim.exercises for t in e.tests if not t.passed]
-    assert failed == [] and victim.total == victim.max_points > 0
+def test_reference_solutions_get_full_marks(graded):
+    ref = graded["reference"]
+    failed = [(e["name"], t["test"], t["reason"])
+              for e in ref["exercises"] for t in e["tests"] if not t["passed"]]
+    assert failed == []
+    expected_max = sum(ex.max_points for ex in find_exercises(SOURCE))
+    assert ref["total"] == ref["max"] == expected_max > 0
+
+
+def test_untouched_release_gets_zero(graded):
+    rel = graded["untouched"]
+    assert rel["total"] == 0 and rel["max"] > 0
+    tests = [t for e in rel["exercises"] for t in e["tests"]]
+    public = {t["reason"] for t in tests if t["test"].startswith("test_public")}
+    hidden = {t["reason"] for t in tests if t["test"].startswith("test_hidden")}
+    assert all("NotImplementedError" in r for r in public), public
+    assert hidden == {"hidden test: raised an exception"}  # the runner's phrase, no sandbox text
+
+
+def test_gradebook_csv(graded_docs):
+    results, csv_path = graded_docs
+    lines = csv_path.read_text().splitlines()
+    header = lines[0].split(",")
+    assert header[:3] == ["student", "total", "max"] and len(header) == 3 + len(find_exercises(SOURCE))
+    rows = {line.split(",")[0]: line.split(",") for line in lines[1:]}
+    assert rows["reference"][1] == rows["reference"][2] == f"{results['reference']['max']:g}"
+    assert rows["untouched"][1] == "0"
+    assert not list(csv_path.parent.glob(".gradebook-*"))  # no temporary left behind
 
 
 def test_every_exercise_has_a_test_drawn_at_grading():

@@ -20,6 +20,7 @@ processes seen in /proc, never on sleeps."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import pwd
@@ -30,16 +31,16 @@ import sys
 import tempfile
 import textwrap
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
+import mslab.grading.autograde as autograde_module
 from mslab.grading import grade
 from mslab.grading.box import PREFIX
 from mslab.grading.box import _mounts as cgroup_mounts
 from mslab.grading.box import _own as own_cgroup
-from mslab.grading.box import setup as setup_cgroups
-from mslab.grading.box import teardown as teardown_cgroups
 from mslab.grading.isolation import _probe
 from mslab.grading.report import format_report, gradebook_rows
 
@@ -212,10 +213,38 @@ def _honest_source(k: int) -> str:
     return f"# student {k}: my own work\n" + text
 
 
-def _leftovers(pid: int) -> list[str]:
-    """What a grading by process ``pid`` could leave behind: hog loops, folders, cgroups."""
-    left = [f"{n} hog loops"] if (n := _hog_loops(CLASS_HOG_MARK)) else []
-    left += [str(p) for p in Path(tempfile.gettempdir()).glob(f"mslab-grade-{pid}-*")]
+@contextlib.contextmanager
+def private_tmp(tmp: Path) -> Iterator[list[str]]:
+    """Grade with ``tmp`` as the temporary folder (``TMPDIR`` and :mod:`tempfile`); yields the
+    names of the grading folders made meanwhile (each also names the grading's cgroups), so
+    :func:`leftovers` can look for exactly those, whatever graders run beside the test."""
+    names: list[str] = []
+
+    class Spied(autograde_module.Owned):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            names.append(self.name)
+
+    saved, saved_dir = os.environ.get("TMPDIR"), tempfile.tempdir
+    os.environ["TMPDIR"] = tempfile.tempdir = str(tmp)
+    try:
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(autograde_module, "Owned", Spied)
+            yield names
+    finally:
+        tempfile.tempdir = saved_dir
+        if saved is None:
+            del os.environ["TMPDIR"]
+        else:
+            os.environ["TMPDIR"] = saved
+
+
+def leftovers(tmp: Path, names: list[str], mark: str = CLASS_HOG_MARK) -> list[str]:
+    """What gradings in the private temporary folder ``tmp`` left behind: processes bearing
+    ``mark``, any grading folder (``mslab-grade-*``, ``.mslab-grade-build-*``) in ``tmp``, and
+    the cgroups of the gradings named ``names``."""
+    left = [f"{n} processes marked {mark}"] if (n := _hog_loops(mark)) else []
+    left += [str(p) for p in tmp.glob(f"{PREFIX}*")] + [str(p) for p in tmp.glob(f".{PREFIX}*")]
     v2, v1 = cgroup_mounts()
     hierarchies = {"": v2} if v2 else {}
     hierarchies.update(v1)
@@ -224,8 +253,27 @@ def _leftovers(pid: int) -> list[str]:
             base = Path(mount) / own_cgroup(name).lstrip("/")
         except OSError:
             continue
-        left += [str(p) for p in base.glob(f"{PREFIX}{pid}*")]
+        left += [str(base / n) for grading in names for n in (grading, f"{grading}-grader")
+                 if (base / n).exists()]
     return left
+
+
+def test_leftovers_finds_what_a_grading_leaves(tmp_path):
+    """The check can fail: a planted grading folder, build folder and marked process are caught."""
+    assert leftovers(tmp_path, [], mark="mslab-planted-mark") == []
+    (tmp_path / f"{PREFIX}0123456789abcdef").mkdir()
+    (tmp_path / f".{PREFIX}build-x").mkdir()
+    # it says "ready" once running (its command line is set), then waits for its stdin to close
+    code = "import sys; print('ready', flush=True); sys.stdin.read() # mslab-planted-mark"
+    proc = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                            text=True)
+    try:
+        assert proc.stdout.readline() == "ready\n"
+        left = leftovers(tmp_path, [], mark="mslab-planted-mark")
+    finally:
+        proc.communicate(timeout=60)
+    assert len(left) == 3, left
+    assert any("1 processes marked" in x for x in left)
 
 
 @pytest.fixture(
@@ -244,9 +292,12 @@ def graded_class(request, tmp_path_factory):
         (cls / name / TARGET).mkdir(parents=True)
         (cls / name / TARGET / MODULE).write_text(text)
     journal = base / "book.journal"
-    results = grade([cls], source=src, jobs=2, timeout=CLASS_TIMEOUT, isolation=request.param,
-                    journal=journal)
-    left = _leftovers(os.getpid())
+    (base / "tmp").mkdir()
+    with private_tmp(base / "tmp") as names:
+        results = grade([cls], source=src, jobs=2, timeout=CLASS_TIMEOUT, isolation=request.param,
+                        journal=journal)
+    assert names, "no grading folder was made: the leftover check looked for nothing"
+    left = leftovers(base / "tmp", names)
     texts = [format_report(r) for r in results]
     texts.append(json.dumps([r.to_dict() for r in results]))
     texts.append("\n".join(",".join(row) for row in gradebook_rows(results)))
@@ -338,7 +389,8 @@ def test_a_cpu_hog_costs_an_honest_classmate_nothing(tmp_path):
     (tmp_path / "hog" / TARGET / MODULE).write_text(HOG.replace("LOOPS", "40").replace("MARK", HOG_MARK))
     (tmp_path / "honest" / TARGET).mkdir(parents=True)
     shutil.copyfile(SOURCE / TARGET / MODULE, tmp_path / "honest" / TARGET / MODULE)
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    (tmp_path / "tmp").mkdir()
+    env = dict(os.environ, PYTHONPATH=str(ROOT), TMPDIR=str(tmp_path / "tmp"))
     hog = subprocess.Popen(
         [
             sys.executable,
@@ -362,6 +414,8 @@ def test_a_cpu_hog_costs_an_honest_classmate_nothing(tmp_path):
     )
     try:
         _wait_for(lambda: _hog_loops() >= 10, 60, "the hog did not start its loops")
+        names = [p.name for p in (tmp_path / "tmp").glob(f"{PREFIX}*")]  # the hog's grading, live
+        assert len(names) == 1, names
         (honest,) = grade([tmp_path / "honest"], source=SOURCE, jobs=1, timeout=2.0, only=[TARGET])
         assert _hog_loops() >= 1, "the hog stopped before its classmate was graded: the test proved nothing"
         assert honest.total == honest.max_points > 0, [
@@ -375,12 +429,7 @@ def test_a_cpu_hog_costs_an_honest_classmate_nothing(tmp_path):
             os.killpg(hog.pid, signal.SIGKILL)
             hog.wait()
     _wait_for(lambda: _hog_loops() == 0, 30, "the hog's loops outlived its grader")
-    config, _ = setup_cgroups(1)  # a fresh grading removes what a killed one left; none is left here
-    try:
-        for parent in (config or {}).get("dirs", {}).values():
-            assert not list(Path(parent).parent.glob(f"{PREFIX}{hog.pid}*"))
-    finally:
-        teardown_cgroups(config)
+    assert leftovers(tmp_path / "tmp", names, mark=HOG_MARK) == []  # its folder and cgroups too
 
 
 # -- an unprivileged grader -------------------------------------------------------------------

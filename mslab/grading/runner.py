@@ -35,6 +35,7 @@ from pathlib import Path
 
 import pytest
 
+from mslab.grading import reaper
 from mslab.grading.layout import HIDDEN
 from mslab.grading.remote import PHRASES, Sandbox, Student, StudentError, set_not_dumpable
 
@@ -100,14 +101,16 @@ class GradingPlugin:
         """Return the sandbox of ``group``, closing every other group's first."""
         for other in [g for g in self.sandboxes if g != group]:
             self.sandboxes.pop(other).close()
+            reaper.kill_orphans()
         if group not in self.sandboxes:
             self.sandboxes[group] = self.make_sandbox(group)
         return self.sandboxes[group]
 
     def close(self) -> None:
-        """Close every sandbox."""
+        """Close every sandbox (and kill what its processes left, :func:`reaper.kill_orphans`)."""
         while self.sandboxes:
             self.sandboxes.popitem()[1].close()
+        reaper.kill_orphans()
 
     @pytest.fixture
     def student(self, request: pytest.FixtureRequest) -> Student:
@@ -134,6 +137,16 @@ class GradingPlugin:
         finally:
             signal.setitimer(signal.ITIMER_PROF, 0)
             signal.signal(signal.SIGPROF, previous)
+
+    def pytest_collection_modifyitems(self, items: list[pytest.Item]) -> None:
+        """Run the public tests first, the hidden ones after (each group in file order).
+
+        Separate sandboxes keep a hidden input out of a public sandbox's memory; where
+        sandboxes share a writable folder (``rlimits`` mode: ``/tmp``, ``/dev/shm``), only this
+        order keeps it out of a public test's message: every public message is written
+        before the first hidden input exists.
+        """
+        items.sort(key=lambda item: test_group(Path(str(item.fspath)).name) == "hidden")
 
     def pytest_collectreport(self, report: pytest.CollectReport) -> None:
         """Record a test file that could not be collected."""
@@ -243,6 +256,7 @@ def run_job(job: dict) -> Iterator[tuple[str, dict]]:
 def main() -> None:
     """Run the job read from stdin; print one ``NONCE JSON`` line per item."""
     set_not_dumpable()
+    reaper.become_subreaper()
     sys.dont_write_bytecode = True
     out = os.fdopen(os.dup(1), "w")
     out.write("ready\n")  # only now may the grader send the job (and its nonce)
