@@ -188,3 +188,19 @@ def test_syntax_error_names_its_line_once(tmp_path):
     (result,) = grade([tmp_path / "student"], source=SOURCE, jobs=1, only=[TARGET])
     reasons = {t.reason for e in result.exercises for t in e.tests if t.test.startswith("test_public")}
     assert reasons and all(r.count("line 3") == 1 and "SyntaxError" in r for r in reasons), reasons
+
+
+@pytest.mark.parametrize("euid", [0, 1000])
+def test_the_rlimits_warning_names_who_the_student_ran_as(euid, monkeypatch, capsys):
+    """Issue 40: as root rlimits runs the student as a throwaway uid (the warning said "your user")."""
+    from types import SimpleNamespace
+
+    from mslab.commands.grade import _warn_isolation
+    from mslab.grading.isolation import DESCRIPTION
+
+    monkeypatch.setattr("os.geteuid", lambda: euid)
+    result = SimpleNamespace(isolation=DESCRIPTION["rlimits"], isolation_asked="rlimits", resources="")
+    _warn_isolation(result)
+    line = capsys.readouterr().err
+    assert line.count("\n") == 1 and "chosen with --isolation rlimits" in line
+    assert ("throwaway uid" in line) == (euid == 0) and ("as your user" in line) == (euid != 0)

@@ -117,9 +117,12 @@ def _warn_isolation(result: SubmissionResult) -> None:
     if result.isolation == DESCRIPTION["rlimits"]:
         why = ("chosen with --isolation rlimits" if result.isolation_asked == "rlimits"
                else "no bwrap and no user namespaces on this machine")
-        print(f"mslab: warning: isolation is rlimits ({why}): student code ran as your user in your "
-              "file system with per-process limits only (no namespaces: it can read what your user "
-              "can read); use --require-isolation to refuse", file=sys.stderr)
+        who = ("as a throwaway uid, in your file system with per-process limits only (no namespaces: "
+               "it can read what other users may read and share /tmp with classmates)" if os.geteuid() == 0
+               else "as your user, in your file system with per-process limits only (no namespaces: it can "
+               "read what your user can read, the hidden tests and classmates' files included)")
+        print(f"mslab: warning: isolation is rlimits ({why}): student code ran {who}; use "
+              "--require-isolation to refuse", file=sys.stderr)
     elif result.resources.startswith("no cgroup"):
         print(f"mslab: warning: {result.resources}: a sandbox's processes, memory and CPU share are "
               "not capped as a whole; use --require-isolation to refuse", file=sys.stderr)
