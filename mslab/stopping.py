@@ -35,11 +35,14 @@ if TYPE_CHECKING:
 CHECK_EVALS = 128
 #: an instability, where dt exceeds the stable dt: the ledger's deviation rose ``GROWTH`` times or
 #: more over at least ``RISE_CHECKS`` checks in a row (none below ``KEEP`` times the rise's peak) to a
-#: gain above ``LEVEL`` times the energy scale
+#: gain above ``LEVEL`` times the energy scale, then either stayed within ``PLATEAU`` times that
+#: gain for as many steps as the rise took (and ``RISE_CHECKS`` checks), or rose ``GROWTH`` times
+#: faster than a linear drift from the rise's start
 LEVEL = 1.0
 GROWTH = 100.0
 RISE_CHECKS = 4
 KEEP = 0.5
+PLATEAU = 4.0
 #: deviations below this fraction of the scale are round-off: they start no rise
 FLOOR = 1e-10
 
@@ -120,15 +123,22 @@ class LedgerCheck:
     ``g = (E - E(0)) / scale``. A **rise** is a run of ``RISE_CHECKS`` or more checks in a row,
     none below ``KEEP`` times the largest ``|E - E(0)|`` since its first check (a drop ends it;
     deviations under ``FLOOR * scale`` are round-off and start none; a jump, an impact at a
-    large dt, starts one at its top). The run is unstable at a check where a rise took
-    ``|E - E(0)|`` up ``GROWTH`` times or more to a gain ``g > LEVEL`` (the whole energy scale)
-    **and dt exceeds the stable dt** (``beyond``, :func:`beyond_limit`: the pre-check's
-    prediction, per mode of the scene linearised at its initial state, with every contact
-    that may start; 0 where no dt is stable, as for forward Euler undamped): a mode outside
-    the method's stability region grows geometrically, ``|R|^(2n)`` in energy, and the rise
-    is that growth, stopped whether it goes on (forward Euler in a wind, its energy x 1e4
-    after long slow growth) or its amplitude saturated (stiff springs swinging through zero
-    length, a contact bouncing) with positions that never blow up.
+    large dt, starts one at its top). A rise **qualifies** when it took ``|E - E(0)|`` up
+    ``GROWTH`` times or more to a gain ``g > LEVEL`` (the whole energy scale). The run is
+    unstable, **where dt exceeds the stable dt** (``beyond``, :func:`beyond_limit`: the
+    pre-check's prediction, per mode of the scene linearised at its initial state with every
+    contact that may start; 0 where no dt is stable, as for forward Euler undamped), when
+
+    * a qualifying rise then **saturated**: stayed within ``PLATEAU`` times its gain for as
+      many steps as it took (and ``RISE_CHECKS`` checks) — the nonlinearity bounded the
+      unstable mode's amplitude (stiff springs swinging through zero length, a contact
+      bouncing), so the positions never blow up; or
+    * a qualifying rise **goes on faster than a linear drift**: ``E - E(0) >= GROWTH * low *
+      (s / s0)`` from ``|E - E(0)| = low`` at its first check ``s0`` to the check ``s``. An
+      unstable mode's energy grows as ``|R|^(2n)``: from the tiny error of the first steps
+      that looks linear at first (forward Euler: ``(1 + h^2 w^2)^n - 1 ~ n h^2 w^2``), then
+      outgrows any drift (forward Euler in a wind, its energy x 7.6e3 after 29000 steps,
+      under the fixed bound), while a drift (free fall) never qualifies.
 
     **Within the stable dt** the ledger gives no verdict: every mode's step matrix then has
     its eigenvalues in the unit disc, so its amplitude stays bounded — but by the conditioning
@@ -155,7 +165,7 @@ class LedgerCheck:
     ``scale`` is :func:`mslab.ledger.initial_energy_scale`; a scene that starts at rest with
     nothing to release (scale 0: a wind drives it) uses the largest kinetic energy checked
     so far. ``energy_blowup = inf`` turns the check off. The rule keeps O(1) state per group
-    and the stable dt is predicted once, at the first qualifying rise: the cost per step is
+    and the stable dt is predicted once, at the first rise that would stop the run: the cost per step is
     that of the checks.
     """
 
@@ -231,6 +241,7 @@ class _Growth:
 
     def __init__(self):
         self._rise = (0, 0.0, 0.0, 0)  # (first step, first |E - E0|, peak |E - E0|, checks)
+        self._risen: tuple | None = None  # (step, E - E0, rise's first step and |E - E0|, checks since)
 
     def update(self, step: int, change: float, scale: float, who: str,
                beyond_limit: Callable[[], bool | None]) -> str | None:
@@ -245,13 +256,29 @@ class _Growth:
         else:
             self._rise = (step, size, size, 1 if size > 0 else 0)
         first, low, peak, count = self._rise
-        if not (growth > LEVEL and count >= RISE_CHECKS and change >= GROWTH * low):
+        rose = growth > LEVEL and count >= RISE_CHECKS and change >= GROWTH * low
+        risen, reason = self._risen, None
+        if risen is not None and size <= PLATEAU * risen[1]:
+            at, level, since, start, n = self._risen = (*risen[:4], risen[4] + 1)
+            if step - at >= at - since and n >= RISE_CHECKS:
+                reason = (f"grew by {level / scale:.3g} x {who} energy scale by step {at}, rising "
+                          f"{level / start:.3g} x since step {since}, and stayed there up to step {step} "
+                          f"(now {growth:.3g} x): {{why}} whose amplitude saturated, so the positions "
+                          f"stayed bounded (e.g. stiff springs swinging through zero length, a contact "
+                          f"bouncing)")
+        elif rose:
+            self._risen = (step, change, first, low, 0)  # risen; a plateau, or more growth, must follow
+        else:
+            self._risen = None
+        if reason is None and rose and change >= GROWTH * low * (step / first):
+            reason = (f"rose {change / low:.3g} x in {count} checks from step {first} to {growth:.3g} x "
+                      f"{who} energy scale at step {step}, {change / (low * step / first):.3g} x more than "
+                      f"a linear drift: the geometric growth of {{why}}, stopped before its amplitude "
+                      f"saturated or the positions blew up")
+        if reason is None:
             return None
-        beyond = beyond_limit()
+        beyond = beyond_limit()  # predicted once, at the first rise that would stop the run
         if beyond is False:
             return None  # a stable mode's transient near the limit, or a drift: the method's error
-        why = "a mode unstable at this dt" if beyond else "an instability (no stable dt is known here)"
-        return (f"rose {change / low:.3g} x in {count} checks from step {first} to {growth:.3g} x {who} "
-                f"energy scale at step {step}: the geometric growth of {why}, whether its amplitude "
-                f"saturated (the positions then stay bounded: e.g. stiff springs swinging through zero "
-                f"length, a contact bouncing) or not")
+        return reason.format(why="a mode unstable at this dt" if beyond else
+                             "an instability (no stable dt is known here)")
