@@ -166,24 +166,25 @@ EXPLICIT = [m for m in mslab.methods() if mslab.get_method(m).explicit]
 
 @pytest.mark.parametrize("method", EXPLICIT)
 def test_no_false_alarm_below_the_limit_and_a_stop_above_it(method):
-    """Every explicit method: at 0.95 and 0.995 of its stable dt the oscillator (swinging through
-    zero length at large amplitude, linear at small) and a driven scene complete, free fall too; at
-    1.02 and 1.1 x the limit on the linear oscillator every run whose step matrix has an eigenvalue
+    """Every explicit method: at 0.95-0.995 of its stable dt the oscillator (swinging through zero
+    length at large amplitude, linear at small) and a driven scene complete, free fall too; at 1.02
+    and 1.1 x the limit on the linear oscillator every run whose step matrix has an eigenvalue
     outside the unit circle stops (yoshida6 is stable again at 1.1 x, beyond a gap in its interval:
-    beyond the predicted stable dt it may stop all the same, the prediction being the first edge)."""
+    beyond the predicted stable dt it may stop all the same, the prediction being the first edge).
+    Compiled loops: 4000 steps a run in well under a second."""
     m = mslab.get_method(method)
-    assert _run(free_fall(), m, 0.01, 500).complete
+    assert _run(free_fall(), m, 0.01, 4000, backend="numba").complete
     for make in (oscillator, lambda: oscillator(displacement=1e-3), driven):
         sc = make()
         limit = predicted_stable_dt(sc, m)
-        for fraction in (0.95, 0.995) if limit else ():  # forward Euler, heun, rk6: no stable dt
-            assert _run(sc, m, fraction * limit, 500).complete
+        for fraction in (0.95, 0.98, 0.995) if limit else ():  # forward Euler, heun, rk6: no stable dt
+            assert _run(sc, m, fraction * limit, 4000, backend="numba").complete
     limit = st.oscillator_limit(method)
-    for fraction in (1.02, 1.1) if limit else ():
+    for fraction in (1.02, 1.05, 1.1) if limit else ():
         radius = float(st.spectral_radius(st.amplification_matrix(method, fraction * limit)))
         if radius > 1:
             with pytest.raises(mslab.InstabilityError):
-                _run(oscillator(displacement=1e-3), m, fraction * limit, 500)
+                _run(oscillator(displacement=1e-3), m, fraction * limit, 4000, backend="numba")
 
 
 def test_energy_groups_are_the_connected_components():
