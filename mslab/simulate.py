@@ -65,7 +65,8 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
         the ledger gives no verdict (a stable mode's energy swings far near the limit; a drive
         makes it drift). ``inf`` turns the check off.
     stable_dt : float, optional
-        Predicted stable step, quoted in the InstabilityError message.
+        Predicted stable step, quoted in the InstabilityError message; the ledger check reads
+        a run with a larger dt as beyond the stable dt (default: the prediction).
     backend : {"auto", "numba", "numpy"}, optional
         Stepping loop, fixed for the run (:mod:`mslab.fast`); None reads ``$MSLAB_BACKEND``
         (default ``"auto"``: compiled where it applies and the run repays loading it).
