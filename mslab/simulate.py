@@ -56,14 +56,17 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
     blowup : float
         A position beyond ``blowup * (1 + scene size)`` counts as a blow-up.
     energy_blowup : float
-        The ledger check (:class:`mslab.stopping.LedgerCheck`): a ledger ``K + U + D - W_ext``
-        above this many times the scene's energy scale (:func:`initial_energy_scale`, from the
-        initial state), or one that *grew* past that scale geometrically — an instability
-        that saturated with bounded positions — stops the run at the checked step where it
-        is found (the error's step and time, ``stats`` and the kept samples all describe that
-        stopping point). ``inf`` turns the check off.
+        The ledger check (:class:`mslab.stopping.LedgerCheck`): where dt exceeds the stable dt
+        (predicted per mode), a ledger ``K + U + D - W_ext`` above this many times the scene's
+        energy scale (:func:`initial_energy_scale`, from the initial state), or one that *grew*
+        past that scale geometrically — an instability, saturated with bounded positions or
+        not — stops the run at the checked step where it is found (the error's step and time,
+        ``stats`` and the kept samples all describe that stopping point). Within the stable dt
+        the ledger gives no verdict (a stable mode's energy swings far near the limit; a drive
+        makes it drift). ``inf`` turns the check off.
     stable_dt : float, optional
-        Predicted stable step, quoted in the InstabilityError message.
+        Predicted stable step, quoted in the InstabilityError message; the ledger check reads
+        a run with a larger dt as beyond the stable dt (default: the prediction).
     backend : {"auto", "numba", "numpy"}, optional
         Stepping loop, fixed for the run (:mod:`mslab.fast`); None reads ``$MSLAB_BACKEND``
         (default ``"auto"``: compiled where it applies and the run repays loading it).

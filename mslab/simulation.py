@@ -132,8 +132,9 @@ class Simulation:
                                                       stacklevel=_stacklevel + 1)
         self.stats = Stats(method=self.integrator.name, dt=self.dt)
         self._samples = Samples(self.system, state0.x.shape, self.save_every, self.end)
+        beyond = stopping.beyond_limit(own, self.integrator, self.dt, self.stable_dt)
         self._check = LedgerCheck(initial_energy_scale(own), energy_blowup, self.integrator.n_stages,
-                                  self.end, own)
+                                  self.end, own, beyond)
         self._limit = position_limit(own, blowup)
         self._loop: NumpyLoop | CompiledLoop | None = None
         self._failed: Exception | None = None

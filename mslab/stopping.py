@@ -33,10 +33,11 @@ if TYPE_CHECKING:
 #: force evaluations between two ledger checks: a check (K and U in numpy, about one numpy
 #: force evaluation) then costs a few per cent of the compiled steps between checks
 CHECK_EVALS = 128
-#: a saturated instability: the ledger's deviation rose ``GROWTH`` times or more over at least
-#: ``RISE_CHECKS`` checks in a row (none below ``KEEP`` times the rise's peak) past ``LEVEL`` times
-#: the scene's energy scale, then stayed within ``PLATEAU`` times that level for at least as
-#: many steps as the rise took and ``RISE_CHECKS`` checks
+#: an instability, where dt exceeds the stable dt: the ledger's deviation rose ``GROWTH`` times or
+#: more over at least ``RISE_CHECKS`` checks in a row (none below ``KEEP`` times the rise's peak) to a
+#: gain above ``LEVEL`` times the energy scale, then either stayed within ``PLATEAU`` times that
+#: gain for as many steps as the rise took (and ``RISE_CHECKS`` checks), or rose ``GROWTH`` times
+#: faster than a linear drift from the rise's start
 LEVEL = 1.0
 GROWTH = 100.0
 RISE_CHECKS = 4
@@ -70,42 +71,90 @@ def hint(stable_dt: float | None) -> str:
     return f"; predicted stable dt = {stable_dt:.4g}"
 
 
+def predicted(scene: Scene, integrator: Integrator) -> float | None:
+    """Return the installed predictor's stable dt (None: no predictor, or no prediction). Counts no work."""
+    from mslab.threads import single_threaded_blas
+
+    return None if _predict is None else single_threaded_blas(_predict)(scene, integrator)
+
+
 def check_stability(scene: Scene, integrator: Integrator, dt: float, stable_dt: float | None,
                     stacklevel: int) -> float | None:
     """Return the predicted stable dt (or the given one); warn when dt exceeds it. Counts no work.
 
     Without a predictor installed (:func:`set_stable_dt_predictor`) there is nothing to check.
     """
-    from mslab.threads import single_threaded_blas
-
     if _predict is None:
         return stable_dt
-    predicted = single_threaded_blas(_predict)(scene, integrator)
-    if predicted is not None and dt > predicted:
+    prediction = predicted(scene, integrator)
+    if prediction is not None and dt > prediction:
         what = (f"{integrator.name} has no stable dt on this scene: its undamped oscillations grow "
                 f"at every dt (slowly when dt is small)"
-                if predicted == 0 else f"dt = {dt:g} exceeds the predicted stable dt = {predicted:.4g} "
-                f"of {integrator.name} ({dt / predicted:.3g} x)")
+                if prediction == 0 else f"dt = {dt:g} exceeds the predicted stable dt = {prediction:.4g} "
+                f"of {integrator.name} ({dt / prediction:.3g} x)")
         warnings.warn(f"{what}; the run may blow up", StabilityWarning, stacklevel=stacklevel)
-    return predicted if stable_dt is None else stable_dt
+    return prediction if stable_dt is None else stable_dt
+
+
+def beyond_limit(scene: Scene, integrator: Integrator, dt: float,
+                 stable_dt: float | None) -> Callable[[], bool | None]:
+    """Return ``beyond()``: whether dt exceeds the stable dt, so that a mode of the linearised scene grows.
+
+    ``stable_dt`` (the pre-check's, or the caller's) when given, else the prediction (inf for an
+    A-stable implicit method), made on the first call only: a run whose ledger never rises
+    never pays for it. None: unknown (no predictor installed, a scene too large to predict).
+    """
+    known: list[bool | None] = []
+
+    def beyond() -> bool | None:
+        if not known:
+            limit = predicted(scene, integrator) if stable_dt is None else stable_dt
+            known.append(None if limit is None else dt > limit)
+        return known[0]
+
+    return beyond
 
 
 class LedgerCheck:
-    """The saturation detector: a ledger ``E = K + U + D - W_ext`` that rose, then stayed up.
+    """The growth detector: a ledger ``E = K + U + D - W_ext`` that rose as only an instability makes it.
 
     Checked steps: 1, 2, 4, ... below :attr:`every`, then every :attr:`every` steps, and the
     declared end of a run — step numbers only, so any chunking checks the same steps. At each,
-    ``g = (E - E(0)) / scale``. The run is unstable there when the instability **saturated**:
-    ``|g|`` rose ``GROWTH`` times or more over ``RISE_CHECKS`` checks in a row or more
-    (geometric growth, what an unstable mode does) to a gain ``g > LEVEL`` (the scene's whole
-    energy scale, which no method gains at a stable dt), and then stopped rising: it stayed
-    within ``PLATEAU`` times that gain for as many steps as the rise took (and
-    ``RISE_CHECKS`` checks) — the nonlinearity bounded the amplitude (stiff springs swinging
-    through zero length, a contact bouncing), so the positions never blow up. A stable
-    method's error reaches its size and stays; an impact at a large dt is a jump, not a rise;
-    a growth that goes on (forward Euler on an undamped scene, which has no stable dt) is left
-    to the positions and to :meth:`over`, the bound ``energy_blowup`` (default 1e4) on the
-    saved samples' ledger. Only gains count.
+    ``g = (E - E(0)) / scale``. A **rise** is a run of ``RISE_CHECKS`` or more checks in a row,
+    none below ``KEEP`` times the largest ``|E - E(0)|`` since its first check (a drop ends it;
+    deviations under ``FLOOR * scale`` are round-off and start none; a jump, an impact at a
+    large dt, starts one at its top). A rise **qualifies** when it took ``|E - E(0)|`` up
+    ``GROWTH`` times or more to a gain ``g > LEVEL`` (the whole energy scale). The run is
+    unstable, **where dt exceeds the stable dt** (``beyond``, :func:`beyond_limit`: the
+    pre-check's prediction, per mode of the scene linearised at its initial state with every
+    contact that may start; 0 where no dt is stable, as for forward Euler undamped), when
+
+    * a qualifying rise then **saturated**: stayed within ``PLATEAU`` times its gain for as
+      many steps as it took (and ``RISE_CHECKS`` checks) — the nonlinearity bounded the
+      unstable mode's amplitude (stiff springs swinging through zero length, a contact
+      bouncing), so the positions never blow up; or
+    * a qualifying rise **goes on faster than a linear drift**: ``E - E(0) >= GROWTH * low *
+      (s / s0)`` from ``|E - E(0)| = low`` at its first check ``s0`` to the check ``s``. An
+      unstable mode's energy grows as ``|R|^(2n)``: from the tiny error of the first steps
+      that looks linear at first (forward Euler: ``(1 + h^2 w^2)^n - 1 ~ n h^2 w^2``), then
+      outgrows any drift (forward Euler in a wind, its energy x 7.6e3 after 29000 steps,
+      under the fixed bound), while a drift (free fall) never qualifies.
+
+    **Within the stable dt** the ledger gives no verdict: every mode's step matrix then has
+    its eigenvalues in the unit disc, so its amplitude stays bounded — but by the conditioning
+    of that matrix, which diverges at the edge of the stability region: just below the limit
+    a stable mode's energy swings a thousand-fold or more (x 1.3e4 for symplectic Euler at
+    0.995 x its limit on the oscillator, bounded over 1e5 steps), rising within a few dozen
+    steps as fast as a saturating instability does, and a free fall or a driven scene's
+    ledger drifts linearly (``m g^2 h t / 2`` under forward Euler): the method's known error,
+    which no threshold on the energy alone tells from an instability. Such runs stop on their
+    positions only. Where the stable dt is unknown (no prediction) the rises and the bound
+    count as beyond it.
+
+    A growth the checks do not resolve (from round-off to beyond the bounds between two
+    checks) is left to the positions and to :meth:`over`, the bound ``energy_blowup``
+    (default 1e4) on the saved samples' ledger, also read only beyond the stable dt. Only
+    gains count.
 
     **Groups** (:func:`mslab.ledger.energy_groups`): particles no effect couples exchange no
     energy, so each group's ledger ``K + U - W_ext`` (the others held at ``x0``) is judged so
@@ -115,15 +164,18 @@ class LedgerCheck:
 
     ``scale`` is :func:`mslab.ledger.initial_energy_scale`; a scene that starts at rest with
     nothing to release (scale 0: a wind drives it) uses the largest kinetic energy checked
-    so far. ``energy_blowup = inf`` turns the check off.
+    so far. ``energy_blowup = inf`` turns the check off. The rule keeps O(1) state per group
+    and the stable dt is predicted once, at the first rise that would stop the run: the cost per step is
+    that of the checks.
     """
 
     def __init__(self, scale: float, energy_blowup: float, n_stages: int, end: int | None,
-                 scene: Scene | None = None):
+                 scene: Scene | None = None, beyond: Callable[[], bool | None] | None = None):
         from mslab.ledger import energy_groups, group_ledgers, group_scales
 
         self.scale, self.energy_blowup, self.end = scale, energy_blowup, end
         self.on = not math.isinf(energy_blowup)
+        self._beyond = beyond if beyond is not None else lambda: None
         #: steps between two checks (after the doubling ones)
         self.every = max(1, CHECK_EVALS // max(1, n_stages))
         self._groups = energy_groups(scene) if scene is not None and self.on else None
@@ -151,7 +203,7 @@ class LedgerCheck:
     def start(self, total: float) -> None:
         """Record ``E(0)``."""
         self._e0, self._k_max = total, 0.0
-        self._watch = [_Saturation() for _ in range(1 if self._groups is None else self._scales.size)]
+        self._watch = [_Growth() for _ in range(1 if self._groups is None else self._scales.size)]
 
     def check(self, step: int, total: float, kinetic: float, x: np.ndarray | None = None,
               v: np.ndarray | None = None) -> str | None:
@@ -159,13 +211,13 @@ class LedgerCheck:
         self._k_max = max(self._k_max, kinetic)
         fallback = self.scale if self.scale > 0 else self._k_max
         if self._groups is None or x is None:
-            return self._watch[0].update(step, total - self._e0, fallback, "the scene's")
+            return self._watch[0].update(step, total - self._e0, fallback, "the scene's", self._beyond)
         changes = self._ledgers(self._system, self._groups, x, v, self._x0) - self._g0
         for g, (watch, change) in enumerate(zip(self._watch, changes, strict=True)):
             scale = self._scales[g] if self._scales[g] > 0 else fallback
             who = (f"the energy scale of particles {np.flatnonzero(self._groups == g)[:5].tolist()} (a group "
                    f"no effect couples to the rest: no energy flows in or out); its")
-            reason = watch.update(step, float(change), scale, who)
+            reason = watch.update(step, float(change), scale, who, self._beyond)
             if reason is not None:
                 return reason
         return None
@@ -178,18 +230,21 @@ class LedgerCheck:
         if not self.on:
             return None
         growth = (total[first:] - total[0]) / scale
+        if np.all(growth <= self.energy_blowup) or self._beyond() is False:
+            return None
         bad = np.flatnonzero(~(growth <= self.energy_blowup))
         return first + int(bad[0]) if bad.size else None
 
 
-class _Saturation:
-    """The saturation rule of :class:`LedgerCheck` for one ledger (the scene's, or a group's)."""
+class _Growth:
+    """The rise rules of :class:`LedgerCheck` for one ledger (the scene's, or a group's)."""
 
     def __init__(self):
         self._rise = (0, 0.0, 0.0, 0)  # (first step, first |E - E0|, peak |E - E0|, checks)
         self._risen: tuple | None = None  # (step, E - E0, rise's first step and |E - E0|, checks since)
 
-    def update(self, step: int, change: float, scale: float, who: str) -> str | None:
+    def update(self, step: int, change: float, scale: float, who: str,
+               beyond_limit: Callable[[], bool | None]) -> str | None:
         """Record the ledger's change ``E - E(0)`` at ``step``; return why the run is unstable, or None."""
         if not scale > 0:
             return None
@@ -201,17 +256,29 @@ class _Saturation:
         else:
             self._rise = (step, size, size, 1 if size > 0 else 0)
         first, low, peak, count = self._rise
-        risen = self._risen
+        rose = growth > LEVEL and count >= RISE_CHECKS and change >= GROWTH * low
+        risen, reason = self._risen, None
         if risen is not None and size <= PLATEAU * risen[1]:
-            at, level, since, low, n = self._risen = (*risen[:4], risen[4] + 1)
+            at, level, since, start, n = self._risen = (*risen[:4], risen[4] + 1)
             if step - at >= at - since and n >= RISE_CHECKS:
-                return (f"grew by {level / scale:.3g} x {who} energy scale by step {at}, rising "
-                        f"{level / low:.3g} x since step {since}, and stayed there up to step {step} "
-                        f"(now {growth:.3g} x): an instability whose amplitude saturated, so the "
-                        f"positions stayed bounded (e.g. stiff springs swinging through zero length, a "
-                        f"contact bouncing)")
-        elif growth > LEVEL and count >= RISE_CHECKS and change >= GROWTH * low:
-            self._risen = (step, change, first, low, 0)  # risen; a plateau must follow
+                reason = (f"grew by {level / scale:.3g} x {who} energy scale by step {at}, rising "
+                          f"{level / start:.3g} x since step {since}, and stayed there up to step {step} "
+                          f"(now {growth:.3g} x): {{why}} whose amplitude saturated, so the positions "
+                          f"stayed bounded (e.g. stiff springs swinging through zero length, a contact "
+                          f"bouncing)")
+        elif rose:
+            self._risen = (step, change, first, low, 0)  # risen; a plateau, or more growth, must follow
         else:
             self._risen = None
-        return None
+        if reason is None and rose and change >= GROWTH * low * (step / first):
+            reason = (f"rose {change / low:.3g} x in {count} checks from step {first} to {growth:.3g} x "
+                      f"{who} energy scale at step {step}, {change / (low * step / first):.3g} x more than "
+                      f"a linear drift: the geometric growth of {{why}}, stopped before its amplitude "
+                      f"saturated or the positions blew up")
+        if reason is None:
+            return None
+        beyond = beyond_limit()  # predicted once, at the first rise that would stop the run
+        if beyond is False:
+            return None  # a stable mode's transient near the limit, or a drift: the method's error
+        return reason.format(why="a mode unstable at this dt" if beyond else
+                             "an instability (no stable dt is known here)")
