@@ -32,6 +32,29 @@ def xs_bytes(shape: tuple) -> int:
     return int(np.prod(shape, dtype=np.float64)) * 8
 
 
+def physical_memory() -> float:
+    """Bytes of this machine's memory (``inf`` where the platform does not say)."""
+    import os
+
+    try:
+        return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    except (AttributeError, ValueError, OSError):
+        return float("inf")
+
+
+def refuse_beyond_memory(n: int, shape: tuple) -> None:
+    """ValueError when ``n`` saved samples of ``shape`` could never fit this machine's memory.
+
+    Checked before any array exists: such an allocation may succeed on an overcommitting OS and
+    then end the process when it is filled, with no message (a run must fail in one line).
+    """
+    need = n * (2 * xs_bytes(shape) + 7 * 8)  # positions, velocities; steps, d, K, U, W_ext, marks
+    if need > physical_memory():
+        raise ValueError(f"t_end, save_every: the {n:.3g} saved samples would need {need / 2**30:.3g} GiB, "
+                         f"more than this machine's {physical_memory() / 2**30:.3g} GiB; use a larger "
+                         "save_every or a shorter t_end")
+
+
 class Samples:
     """The saved states of a session: step ``s`` is saved when ``s % save_every == 0``, and at ``end``.
 
@@ -56,6 +79,7 @@ class Samples:
         self.marks: list = []
         self._filled = 0  # samples [0, _filled) have K, U, W_ext
         if end is not None:
+            refuse_beyond_memory(end // save_every + 2, shape)
             steps = save_indices(end, save_every)
         else:
             steps = np.arange(2 if save_every >= NEVER else FIRST_CAPACITY, dtype=np.int64) * save_every

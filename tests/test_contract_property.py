@@ -104,3 +104,14 @@ def test_hostile_option_values_are_refused_in_one_line_or_are_valid(case, word):
     value = getattr(args, attribute)
     for one in value if isinstance(value, list) else [value]:
         assert accepted(one, rule), (argv, one)
+
+
+def test_a_run_that_could_never_fit_in_memory_is_refused_before_any_array():
+    """A huge t_end (1e12 s at dt = 0.01: 1e14 saved samples) failed with a MemoryError, or on an
+    overcommitting OS was killed while filling its arrays; now one ValueError naming the arguments."""
+    import pytest
+
+    with pytest.raises(ValueError, match=r"t_end, save_every: .* GiB, more than this machine's"):
+        mslab.Simulation(CHAIN, "euler", dt=0.01, t_end=1e12, backend="numpy", check_stability=False)
+    with pytest.raises(ValueError, match="use a larger save_every"):
+        mslab.simulate(CHAIN, "euler", dt=0.01, t_end=1e12, backend="numpy", check_stability=False)
