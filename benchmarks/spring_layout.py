@@ -4,7 +4,7 @@ Usage::
 
     .venv/bin/python benchmarks/spring_layout.py [--before REV] [--repeats 21]
 
-``--before`` names a git revision (default ``HEAD``) whose ``mslab/effects/spring_kernels.py``
+``--before`` names a git revision (default ``main``) whose ``mslab/effects/spring_kernels.py``
 is loaded beside this tree's (from a temporary folder, compiled by :func:`mslab.jit.compiled`)
 and called with the same parameters (this tree's ``Springs.kernel_params()``: the old kernel
 reads a run's flags as "a run"). For the frame loop's cloth (``benchmarks/frame_loop.py``:
@@ -107,7 +107,7 @@ def compare(old, new, n: int, damping: float, repeats: int, threads: int) -> dic
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--before", default="HEAD")
+    parser.add_argument("--before", default="main")
     parser.add_argument("--repeats", type=int, default=21)
     parser.add_argument("--sizes", type=int, nargs="+", default=[64, 128, 300])
     args = parser.parse_args()
