@@ -160,7 +160,7 @@ def spring_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, stiffness: np.ndarra
     receiving ``-f`` of spring ``p - b`` before ``+f`` of spring ``p - a``: in spring order as
     in :func:`spring_range`, so the forces are bitwise the same, in about half the time
     (``benchmarks/RESULTS.md``). The powers are summed by :func:`lane_sum` (round-off apart
-    from a sum in spring order; the same on every machine and thread count). A run whose
+    from a sum in spring order; the same on every machine and thread count). A damped run whose
     ``flags`` (:func:`mslab.effects.spring_batches.run_flags`) say it has one stiffness and
     one damping keeps them in registers (the same bits, fewer loads). Cost: one square root
     and one division per spring, ``O(m)`` memory traffic.
@@ -174,26 +174,22 @@ def spring_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, stiffness: np.ndarra
     rest = rest_length[start:stop]
     c = damping[start:stop]
     out = pair[:3 * m]
-    rate_of = rates[:m]
-    flat_v = v.reshape(v.size)
-    va = flat_v[3 * a:3 * (a + m)] if damped else xa
-    vb = flat_v[3 * b:3 * (b + m)] if damped else xb
-    if (flags & 2) != 0:  # spring_batches.SAME_STIFFNESS: k and c in registers
-        k0, c0 = k[0], c[0]
-        if damped:
+    if damped:
+        rate_of = rates[:m]
+        flat_v = v.reshape(v.size)
+        va = flat_v[3 * a:3 * (a + m)]
+        vb = flat_v[3 * b:3 * (b + m)]
+        if (flags & 2) != 0:  # spring_batches.SAME_STIFFNESS: k and c in registers
+            k0, c0 = k[0], c[0]
             for s in range(m):
                 run_pair(xa, xb, va, vb, s, k0, rest[s], c0, 1, out, rate_of)
         else:
             for s in range(m):
-                run_pair(xa, xb, va, vb, s, k0, rest[s], 0.0, 0, out, rate_of)
-    elif damped:
-        for s in range(m):
-            run_pair(xa, xb, va, vb, s, k[s], rest[s], c[s], 1, out, rate_of)
-    else:
-        for s in range(m):
-            run_pair(xa, xb, va, vb, s, k[s], rest[s], 0.0, 0, out, rate_of)
-    if damped:
+                run_pair(xa, xb, va, vb, s, k[s], rest[s], c[s], 1, out, rate_of)
         power += lane_sum(rate_of)
+    else:  # (one stiffness in a register measured no faster here: the loads are not what bounds it)
+        for s in range(m):
+            run_pair(xa, xb, xa, xb, s, k[s], rest[s], 0.0, 0, out, rates)
     # f[a + s] += out[s] and f[b + s] -= out[s], the j end first where a particle has both ends
     shift = 3 * (b - a)
     span = flat_f[3 * a:3 * (b + m)]
