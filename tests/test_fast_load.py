@@ -60,3 +60,33 @@ def test_auto_takes_the_same_backend_in_a_fresh_process_and_after_other_runs():
     after = [fast.worth_compiling(scene.system, method, n) for n in (10, 10**3, 10**6)]
     assert _fresh()["auto"] == after
     assert after[0] is False and after[2] is True
+
+
+def test_the_cost_model_counts_the_force_evaluations_a_step_makes():
+    """``evaluations_per_step`` is what the system counts (a kick of damped forces is a Runge-Kutta step).
+
+    The old model took ``n_stages`` (1 for velocity Verlet, 3 for Forest-Ruth), 4x too few on
+    the damped rope: fails on the old code (no such method).
+    """
+    scene = mslab.load_scene("hanging_rope")  # damped: its kicks step velocity-dependent forces
+    for name in ("velocity_verlet", "forest_ruth", "rk4", "symplectic_euler", "leapfrog"):
+        method = mslab.get_method(name)
+        traj = mslab.simulate(scene, method, t_end=0.02, backend="numpy", check_stability=False)
+        steps = round(0.02 / scene.settings.dt)
+        counted = (traj.stats.n_force - method.n_start) / steps
+        assert abs(counted - method.evaluations_per_step(scene.system)) <= 1 / steps, name
+
+
+def test_auto_compiles_the_runs_that_take_a_fifth_of_a_second_in_numpy():
+    """Issue 38 item 0: a lone default call of >= 0.2 s steps compiled (numpy is 40-170x slower once
+    the compiled loop is loaded). Runs measured at 0.3-0.6 s in numpy on an idle machine
+    (benchmarks/lone_call.py) that the old rule kept in numpy; a few steps stay numpy.
+    """
+    from mslab.scenes import generators
+
+    chain, rk4 = mslab.load_scene("chain"), mslab.get_method("rk4")
+    assert fast.worth_compiling(chain.system, rk4, 1000)  # the chain's second, rk4 at t_end 1
+    jelly = mslab.load_scene("jelly_cube")
+    assert fast.worth_compiling(jelly.system, mslab.get_method("symplectic_euler"), 1500)
+    assert fast.worth_compiling(generators.chain(20, dim=3).system, rk4, 1600)  # rk4 at a 1e-6 error
+    assert not fast.worth_compiling(chain.system, rk4, 20)

@@ -3,17 +3,17 @@
 import numpy as np
 
 import mslab
-from mslab.fast import LOAD_SECONDS, numpy_seconds
+from mslab.fast import AUTO_SECONDS, numpy_seconds
 from mslab.fast.job import job_backends
 
 
 def test_many_short_runs_together_take_the_compiled_loop():
     scene = mslab.load_scene("chain")
     rk4 = mslab.get_method("rk4")
-    steps = 200
+    steps = 50
     one = numpy_seconds(scene.system, rk4, steps)
-    n_runs = int(LOAD_SECONDS / one) + 2          # no run alone repays loading, all together do
-    assert one < LOAD_SECONDS < n_runs * one
+    n_runs = int(AUTO_SECONDS / one) + 2          # no run alone repays loading, all together do
+    assert one < AUTO_SECONDS < n_runs * one
     assert job_backends(scene.system, [(rk4, steps)]) == ["numpy"]
     assert job_backends(scene.system, [(rk4, steps)] * n_runs) == ["numba"] * n_runs
     # the same job on the numpy or numba backend, asked by name, is kept as asked

@@ -137,9 +137,9 @@ def test_auto_backend_is_decided_once_from_the_expected_work():
         sim.advance(1)
         assert sim.compiled == fast.worth_compiling(sc.system, method, HORIZON)
     assert mslab.Simulation(cloth, method, dt=1e-4, backend="auto", check_stability=False).compiled
-    assert not mslab.Simulation(small, method, dt=1e-4, backend="auto").compiled
-    declared = mslab.Simulation(small, method, dt=1e-4, t_end=10.0, backend="auto")  # 10^5 steps
-    assert declared.compiled == fast.worth_compiling(small.system, method, 10**5)
+    assert mslab.Simulation(small, method, dt=1e-4, backend="auto").compiled  # 3000 steps: ~0.3 s numpy
+    declared = mslab.Simulation(small, method, dt=1e-4, t_end=0.01, backend="auto")  # 100 steps
+    assert not declared.compiled and not fast.worth_compiling(small.system, method, 100)
 
 
 # -- the saturation detector (issue 23 item 7): growth with bounded positions ends the run ------------

@@ -18,7 +18,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mslab.effects import Springs
-from mslab.effects.spring_batches import MAX_RUN, MIN_RUN, batches, segments
+from mslab.effects.spring_batches import MAX_RUN, MIN_RUN, SAME_STIFFNESS, batches, run_flags, segments
 from mslab.effects.spring_kernels import spring_kernel
 from mslab.fast.model import _param
 from mslab.jit import compiled
@@ -52,8 +52,8 @@ def spring_table(rng: np.random.Generator, n: int, pieces: int) -> tuple[np.ndar
 
 @settings(max_examples=40, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), dim=st.sampled_from([1, 2, 3]), damped=st.booleans(),
-       pieces=st.integers(1, 12), parallel=st.booleans())
-def test_runs_give_the_plain_loops_bits(seed, dim, damped, pieces, parallel):
+       pieces=st.integers(1, 12), parallel=st.booleans(), uniform=st.booleans())
+def test_runs_give_the_plain_loops_bits(seed, dim, damped, pieces, parallel, uniform):
     rng = np.random.default_rng(seed)
     n = 4 * MAX_RUN
     i, j = spring_table(rng, n, pieces)
@@ -67,6 +67,10 @@ def test_runs_give_the_plain_loops_bits(seed, dim, damped, pieces, parallel):
     v = rng.normal(size=(n, dim))
     k, rest = rng.uniform(1, 100, m), rng.uniform(0.1, 2, m)
     c = rng.uniform(0, 3, m) if damped else np.zeros(m)
+    if uniform:  # one stiffness and damping (a mesh's rows), a few springs apart: runs held in registers
+        k, c = np.full(m, k[0]), np.full(m, c[0])
+        k[:: max(1, m // 3)] = 7.0
+        run = run_flags(bounds, run, k, c)
     kernel = compiled(spring_kernel)
     params = [_param(p) for p in (i, j, k, rest, c, int(damped), bounds, run, batch_segments, phases)]
     f_runs = rng.normal(size=(n, dim))  # forces already there (gravity): added to, in order
@@ -113,8 +117,27 @@ def test_a_cloth_is_all_runs():
     scene = generators.cloth(64, 64)
     springs = next(e for e in scene.system.effects if isinstance(e, Springs))
     *_, bounds, run, batch_segments, phases = springs.kernel_params()
-    in_runs = int(np.sum(np.diff(bounds)[run == 1]))
+    in_runs = int(np.sum(np.diff(bounds)[run != 0]))
     assert in_runs == len(springs.i)
+    assert np.all(run & SAME_STIFFNESS)  # each row has one stiffness and damping (issue 38 item 1)
+
+
+def test_one_stiffness_is_one_bit_pattern():
+    """A run has one stiffness and damping only when their bits agree: 0.0 and -0.0 do not.
+
+    (``s - c r / l`` with ``c = -0.0`` and ``0.0`` can differ in the sign of a zero force.)
+    Fails on the old code (no ``run_flags``).
+    """
+    i = np.arange(2 * MIN_RUN, dtype=np.int64)
+    j, ranges = i + 1, np.array([0, i.size], dtype=np.int64)
+    bounds, run, _ = segments(i, j, ranges)
+    k = np.full(i.size, 5.0)
+    assert run_flags(bounds, run, k, np.zeros(i.size)).tolist() == [1 | SAME_STIFFNESS]
+    mixed = np.zeros(i.size)
+    mixed[3] = -0.0
+    assert run_flags(bounds, run, k, mixed).tolist() == [1]
+    k[-1] = np.nextafter(5.0, 6.0)
+    assert run_flags(bounds, run, k, np.zeros(i.size)).tolist() == [1]
 
 
 @pytest.mark.parametrize("n", [0, 1, 7, 8, 9, 63, 1000])

@@ -142,3 +142,30 @@ def segments(i: np.ndarray, j: np.ndarray, ranges: np.ndarray, min_run: int = MI
     order = np.argsort(bounds, kind="stable")
     bounds, run = np.append(bounds[order], m), run[order]
     return bounds, run, np.searchsorted(bounds[:-1], ranges).astype(np.int64)
+
+
+#: bits of a segment's ``run`` entry (:func:`run_flags`): a run; a run whose springs have one
+#: stiffness and one damping
+RUN, SAME_STIFFNESS = 1, 2
+
+
+def run_flags(bounds: np.ndarray, run: np.ndarray, stiffness: np.ndarray, damping: np.ndarray) -> np.ndarray:
+    """Return ``run`` with the bit :data:`SAME_STIFFNESS` set on the runs that have one stiffness and damping.
+
+    Every row of a mesh generator's cloth has; :func:`mslab.effects.spring_kernels.spring_run`
+    then holds the two values in registers instead of loading them spring by spring. "One
+    value" is bitwise (``0.0`` and ``-0.0`` differ), so the forces are bitwise those of the
+    per-spring values. (Rest lengths computed from a mesh's positions differ in their last
+    bits from spring to spring: they stay per spring.) Cost ``O(n_springs)``, once per scene.
+    """
+    flags = np.asarray(run, dtype=np.int64).copy()
+    starts = np.asarray(bounds[:-1], dtype=np.int64)
+    if starts.size == 0:
+        return flags
+
+    def same(values: np.ndarray) -> np.ndarray:
+        bits = np.ascontiguousarray(values, dtype=np.float64).view(np.int64)
+        return np.minimum.reduceat(bits, starts) == np.maximum.reduceat(bits, starts)
+
+    flags[(flags != 0) & same(stiffness) & same(damping)] |= SAME_STIFFNESS
+    return flags

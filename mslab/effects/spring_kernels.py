@@ -76,7 +76,8 @@ def spring_batch(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: 
         stop = bounds[s + 1]
         if runs and run[s]:
             power = spring_run(x, v, f, stiffness, rest_length, damping, damped, np.int64(i[start]),
-                               np.int64(j[start]), np.int64(start), np.int64(stop), power, pair, rates)
+                               np.int64(j[start]), np.int64(start), np.int64(stop), power, pair, rates,
+                               run[s])
         else:
             power = spring_range(x, v, f, i, j, stiffness, rest_length, damping, damped, start, stop,
                                  power)
@@ -147,7 +148,8 @@ def pair_scale(dx: float, dy: float, dz: float, rate: float, stiffness: float, r
 
 def spring_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, stiffness: np.ndarray,
                rest_length: np.ndarray, damping: np.ndarray, damped: int, a: int, b: int,
-               start: int, stop: int, power: float, pair: np.ndarray, rates: np.ndarray) -> float:
+               start: int, stop: int, power: float, pair: np.ndarray, rates: np.ndarray,
+               flags: int = 1) -> float:
     """Add the forces of a run of springs in 3D to ``f``; return ``power`` plus their dissipated power.
 
     Springs ``start:stop`` join particles ``a + s`` and ``b + s`` (``s = 0 .. m-1``, ``b > a``,
@@ -158,7 +160,10 @@ def spring_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, stiffness: np.ndarra
     receiving ``-f`` of spring ``p - b`` before ``+f`` of spring ``p - a``: in spring order as
     in :func:`spring_range`, so the forces are bitwise the same, in about half the time
     (``benchmarks/RESULTS.md``). The powers are summed by :func:`lane_sum` (round-off apart
-    from a sum in spring order; the same on every machine and thread count).
+    from a sum in spring order; the same on every machine and thread count). A damped run whose
+    ``flags`` (:func:`mslab.effects.spring_batches.run_flags`) say it has one stiffness and
+    one damping keeps them in registers (the same bits, fewer loads). Cost: one square root
+    and one division per spring, ``O(m)`` memory traffic.
     """
     m = stop - start
     flat_x = x.reshape(x.size)
@@ -167,35 +172,24 @@ def spring_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, stiffness: np.ndarra
     xb = flat_x[3 * b:3 * (b + m)]
     k = stiffness[start:stop]
     rest = rest_length[start:stop]
+    c = damping[start:stop]
     out = pair[:3 * m]
     if damped:
+        rate_of = rates[:m]
         flat_v = v.reshape(v.size)
         va = flat_v[3 * a:3 * (a + m)]
         vb = flat_v[3 * b:3 * (b + m)]
-        c = damping[start:stop]
-        rate_of = rates[:m]
-        for s in range(m):
-            dx = xa[3 * s] - xb[3 * s]
-            dy = xa[3 * s + 1] - xb[3 * s + 1]
-            dz = xa[3 * s + 2] - xb[3 * s + 2]
-            rate = dx * (va[3 * s] - vb[3 * s])
-            rate += dy * (va[3 * s + 1] - vb[3 * s + 1])
-            rate += dz * (va[3 * s + 2] - vb[3 * s + 2])
-            scale, p = pair_scale(dx, dy, dz, rate, k[s], rest[s], c[s], 1)
-            rate_of[s] = p
-            out[3 * s] = scale * dx
-            out[3 * s + 1] = scale * dy
-            out[3 * s + 2] = scale * dz
+        if (flags & 2) != 0:  # spring_batches.SAME_STIFFNESS: k and c in registers
+            k0, c0 = k[0], c[0]
+            for s in range(m):
+                run_pair(xa, xb, va, vb, s, k0, rest[s], c0, 1, out, rate_of)
+        else:
+            for s in range(m):
+                run_pair(xa, xb, va, vb, s, k[s], rest[s], c[s], 1, out, rate_of)
         power += lane_sum(rate_of)
-    else:
+    else:  # (one stiffness in a register measured no faster here: the loads are not what bounds it)
         for s in range(m):
-            dx = xa[3 * s] - xb[3 * s]
-            dy = xa[3 * s + 1] - xb[3 * s + 1]
-            dz = xa[3 * s + 2] - xb[3 * s + 2]
-            scale, _ = pair_scale(dx, dy, dz, 0.0, k[s], rest[s], 0.0, 0)
-            out[3 * s] = scale * dx
-            out[3 * s + 1] = scale * dy
-            out[3 * s + 2] = scale * dz
+            run_pair(xa, xb, xa, xb, s, k[s], rest[s], 0.0, 0, out, rates)
     # f[a + s] += out[s] and f[b + s] -= out[s], the j end first where a particle has both ends
     shift = 3 * (b - a)
     span = flat_f[3 * a:3 * (b + m)]
@@ -211,6 +205,28 @@ def spring_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, stiffness: np.ndarra
     for t in range(tail.shape[0]):  # a j end only
         tail[t] -= early[t]
     return power
+
+
+def run_pair(xa: np.ndarray, xb: np.ndarray, va: np.ndarray, vb: np.ndarray, s: int, k: float,
+             rest: float, c: float, damped: int, out: np.ndarray, rates: np.ndarray) -> None:
+    """Write spring ``s`` of a run: its pair force into ``out[3s:3s+3]``, its power into ``rates[s]``.
+
+    The body of :func:`spring_run`'s loops (inlined there; ``damped`` a constant of each loop).
+    """
+    dx = xa[3 * s] - xb[3 * s]
+    dy = xa[3 * s + 1] - xb[3 * s + 1]
+    dz = xa[3 * s + 2] - xb[3 * s + 2]
+    rate = 0.0
+    if damped:
+        rate = dx * (va[3 * s] - vb[3 * s])
+        rate += dy * (va[3 * s + 1] - vb[3 * s + 1])
+        rate += dz * (va[3 * s + 2] - vb[3 * s + 2])
+    scale, p = pair_scale(dx, dy, dz, rate, k, rest, c, damped)
+    if damped:
+        rates[s] = p
+    out[3 * s] = scale * dx
+    out[3 * s + 1] = scale * dy
+    out[3 * s + 2] = scale * dz
 
 
 def lane_sum(values: np.ndarray) -> float:

@@ -15,7 +15,7 @@ import numpy as np
 from mslab.effects.base import Body, BuildContext, Builder, Effect, HookeSprings
 from mslab.effects.registry import register
 from mslab.effects.schema import Key, check_keys
-from mslab.effects.spring_batches import batches, segments
+from mslab.effects.spring_batches import batches, run_flags, segments
 from mslab.effects.spring_kernels import scatter_pair_blocks, spring_jacobian_kernel, spring_kernel
 from mslab.effects.spring_table import SPRING_KINDS, SpringTable
 
@@ -254,14 +254,17 @@ class Springs(Effect):
         ``(i, j, stiffness, rest_length, damping, damped, bounds, run, batches, phases)``: the
         spring arrays in the order of their conflict-free batches
         (:func:`mslab.effects.spring_batches.batches`), each batch cut into runs and plain
-        segments (:func:`~mslab.effects.spring_batches.segments`); computed once per effect.
+        segments (:func:`~mslab.effects.spring_batches.segments`), a run's entry in ``run``
+        telling whether it has one stiffness and damping
+        (:func:`~mslab.effects.spring_batches.run_flags`); computed once per effect.
         """
         if self._batched is None:
             order, ranges, phases = batches(self.i, self.j, self.n)
             i, j = self.i[order], self.j[order]
             bounds, run, batch_segments = segments(i, j, ranges)
-            self._batched = (i, j, self.stiffness[order], self.rest_length[order], self.damping[order],
-                             int(self.dissipative), bounds, run, batch_segments, phases)
+            k, rest, c = self.stiffness[order], self.rest_length[order], self.damping[order]
+            run = run_flags(bounds, run, k, c)
+            self._batched = (i, j, k, rest, c, int(self.dissipative), bounds, run, batch_segments, phases)
         return self._batched
 
     # -- scene description -----------------------------------------------------------------------

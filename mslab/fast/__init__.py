@@ -14,8 +14,8 @@ Which path runs is the *backend*, an argument fixed when the stepper is built
 
 * ``"numba"``: the compiled loop, or ValueError saying why it does not apply;
 * ``"numpy"``: the readable loop only;
-* ``"auto"``: the compiled loop where it applies and the run is long enough to repay loading
-  the compiled code (:func:`worth_compiling`), numpy otherwise.
+* ``"auto"``: the compiled loop where it applies and the run's numpy time is predicted above
+  :data:`AUTO_SECONDS` (:func:`worth_compiling`), numpy otherwise.
 
 The compiled loop applies to a plain :class:`~mslab.system.System` whose effects all have
 kernels (springs, gravity, damping, anchors, colliders today) stepped by a method whose ``compiled``
@@ -77,15 +77,26 @@ def unsupported(system: System, integrator: Integrator) -> str | None:
     return None
 
 
-#: Predicted seconds of one numpy force evaluation: a fixed cost per evaluation (the
-#: system's and the method's own Python around the forces: 40-120 us more per evaluation
-#: than the two other terms alone, measured on the chain, pendulum and hanging rope, issue
-#: 38; the lower end taken), a fixed cost per effect and a cost per item (particle, spring,
-#: anchor) of the effects' kernels, fitted on this machine's chains and cloths (5 to 59,002
-#: springs: 19.5 us to 3.4 ms).
-NUMPY_SECONDS_PER_EVAL = 27e-6
+#: Predicted seconds of numpy stepping, fitted on this machine's scenes (chain, pendulum,
+#: hanging rope, jelly cube, cube without shear, topology pair, cloth on a sphere) and the
+#: explicit methods (euler to rk6, the splittings, Verlet, leapfrog): CPU seconds of 200
+#: steps, minimum of 3, issue 38 item 0 (``benchmarks/lone_call.py``). A fixed cost per step
+#: (the method's own Python and array work, the stopping checks), per force evaluation (the
+#: system's Python around the forces), per effect and evaluation, and per item (particle,
+#: spring, anchor) of an effect's kernel and evaluation. The fit is within 0.5-1.6x of every
+#: measured run; each term is rounded up.
+NUMPY_SECONDS_PER_STEP = 30e-6
+NUMPY_SECONDS_PER_EVAL = 50e-6
 NUMPY_SECONDS_PER_EFFECT = 8e-6
-NUMPY_SECONDS_PER_ITEM = 55e-9
+NUMPY_SECONDS_PER_ITEM = 80e-9
+
+#: ``auto`` steps compiled every run whose numpy time is predicted above this. Below
+#: :data:`LOAD_SECONDS` on purpose: the rule cannot know whether this process has loaded the
+#: compiled loop already (it must not: the same call gives the same bits whatever ran
+#: before), and once loaded, a numpy run costs 40-170x the compiled one; a run predicted
+#: above 0.1 s (so every run of >= 0.2 s, given the model's spread) takes the compiled loop,
+#: paying at most the load of the compiled code (~0.3 s) in a fresh process.
+AUTO_SECONDS = 0.1
 
 
 def _items(effect: object, n_particles: int) -> int:
@@ -95,24 +106,27 @@ def _items(effect: object, n_particles: int) -> int:
 
 def worth_compiling(system: System, integrator: Integrator, n_steps: int,
                     state0: State | None = None) -> bool:
-    """Decide whether ``auto`` runs these steps compiled.
+    """Decide whether ``auto`` runs these steps compiled (cost: one pass over the effects).
 
-    True when the numpy loop's predicted time exceeds :data:`LOAD_SECONDS`, the cost of
-    loading the compiled loops from numba's cache. The prediction is a fixed cost model
-    (:data:`NUMPY_SECONDS_PER_EVAL`, :data:`NUMPY_SECONDS_PER_EFFECT`,
-    :data:`NUMPY_SECONDS_PER_ITEM`, times the force
-    evaluations of the run, times 1.5 for the integrator's own array work), never a
-    measurement and never this process's history: the same run always takes the same
-    backend, so its results (equal on both backends only to round-off) are reproducible.
+    True when the numpy loop's predicted time (:func:`numpy_seconds`) exceeds
+    :data:`AUTO_SECONDS`. The prediction is a fixed cost model, never a measurement and never
+    this process's history: the same run always takes the same backend, so its results
+    (equal on both backends only to round-off) are reproducible.
     """
-    return numpy_seconds(system, integrator, n_steps) > LOAD_SECONDS
+    return numpy_seconds(system, integrator, n_steps) > AUTO_SECONDS
 
 
 def numpy_seconds(system: System, integrator: Integrator, n_steps: int) -> float:
-    """Predict the seconds of ``n_steps`` numpy steps: the fixed cost model of :func:`worth_compiling`."""
+    """Predict the seconds of ``n_steps`` numpy steps (cost: one pass over the effects).
+
+    ``n_steps`` times (:data:`NUMPY_SECONDS_PER_STEP` + the method's force evaluations per
+    step on this system, :meth:`~mslab.integrators.base.Integrator.evaluations_per_step`,
+    times the cost of one evaluation: :data:`NUMPY_SECONDS_PER_EVAL`, and per effect
+    :data:`NUMPY_SECONDS_PER_EFFECT` + :data:`NUMPY_SECONDS_PER_ITEM` per item).
+    """
     per_eval = NUMPY_SECONDS_PER_EVAL + sum(NUMPY_SECONDS_PER_EFFECT + NUMPY_SECONDS_PER_ITEM
                                             * _items(e, system.n_particles) for e in system.effects)
-    return n_steps * max(1, integrator.n_stages) * per_eval * 1.5
+    return n_steps * (NUMPY_SECONDS_PER_STEP + integrator.evaluations_per_step(system) * per_eval)
 
 
 def stepper(system: System, integrator: Integrator, backend: str | None = None, n_steps: int | None = None,
@@ -147,5 +161,5 @@ def stepper(system: System, integrator: Integrator, backend: str | None = None, 
     return runner
 
 
-__all__ = ["BACKENDS", "COMPILE_SECONDS", "ForceModel", "LOAD_SECONDS", "Stepper", "check_backend", "stepper",
-           "numpy_seconds", "unsupported", "worth_compiling"]
+__all__ = ["AUTO_SECONDS", "BACKENDS", "COMPILE_SECONDS", "ForceModel", "LOAD_SECONDS", "Stepper",
+           "check_backend", "stepper", "numpy_seconds", "unsupported", "worth_compiling"]

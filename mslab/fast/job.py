@@ -5,7 +5,7 @@ many short simulations of one scene. Deciding per run, ``auto`` would send each 
 numpy (no single run repays loading the compiled code) and the sweep would run 40-170x
 slower than compiled. The job is known in advance, so it is decided once: when the numpy
 time predicted for *all* its runs (the fixed cost model :func:`mslab.fast.numpy_seconds`,
-never a measurement) exceeds the one-time load :data:`mslab.fast.LOAD_SECONDS`, every run
+never a measurement) exceeds :data:`mslab.fast.AUTO_SECONDS` (the rule of a single run), every run
 that the compiled loop can step takes it, the others numpy. The same job takes the same
 backends on every machine, so its results (equal on both backends to round-off) are
 reproducible.
@@ -17,7 +17,7 @@ from collections.abc import Iterable
 from typing import TYPE_CHECKING
 
 from mslab import jit
-from mslab.fast import LOAD_SECONDS, check_backend, forces_reason, numpy_seconds, unsupported
+from mslab.fast import AUTO_SECONDS, check_backend, forces_reason, numpy_seconds, unsupported
 
 if TYPE_CHECKING:
     from mslab.integrators.base import Integrator
@@ -47,7 +47,7 @@ def job_backends(system: System, runs: Iterable[tuple[Integrator, int]],
     able = [unsupported(system, integrator) is None for integrator, _ in runs]
     total = sum(numpy_seconds(system, integrator, n) for (integrator, n), ok in zip(runs, able, strict=True)
                 if ok)
-    compiled = total > LOAD_SECONDS
+    compiled = total > AUTO_SECONDS
     if compiled and not jit.available():  # numba missing: the numpy loop, with one warning what it costs
         jit.without_numba(name)
         compiled = False

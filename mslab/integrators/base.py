@@ -84,6 +84,14 @@ class Integrator:
         """One step of size ``dt``: a new State; ``state`` is not modified."""
         raise NotImplementedError
 
+    def evaluations_per_step(self, system: System) -> int:
+        """Force evaluations one step of this method makes on ``system`` (cost: O(1)).
+
+        Default :attr:`n_stages`; a method whose count depends on the forces (a splitting
+        whose kicks step velocity-dependent forces with a Runge-Kutta method) says so.
+        """
+        return max(1, self.n_stages)
+
     def stability_function(self, z: np.ndarray) -> np.ndarray | None:
         """``R(z)`` for an array of complex ``z``; None when the method has no scalar R."""
         return None

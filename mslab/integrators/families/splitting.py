@@ -99,6 +99,12 @@ class Splitting(Integrator):
         """The generic compiled splitting loop over ``drift, kick``."""
         return "splitting", (self.drift, self.kick)
 
+    def evaluations_per_step(self, system: System) -> int:
+        """Force evaluations per step: :attr:`n_stages`, or every kick's Runge-Kutta stages (cost: O(1))."""
+        if not system.velocity_dependent:
+            return max(1, self.n_stages)
+        return self.kick.size * self.kick_method.n_stages
+
     def _reuses(self, system: System) -> bool:
         return self.fsal and not system.velocity_dependent
 
