@@ -37,7 +37,8 @@ _FOLDER_OF = {"coefficients": "families", "polynomials": "families", "runge_kutt
               "splitting": "families", "two_step": "families", "local_global": "families",
               "local_step": "families", "local_global_loop": "families", "linear": "newton",
               "newton_matrix": "newton", "pcg": "newton", "factor": "newton", "coupled": "newton",
-              "solvers": "newton", "tree_solve": "newton", "tree_kernels": "newton"}
+              "solvers": "newton", "tree_solve": "newton", "tree_kernels": "newton",
+              "damped": "newton"}
 
 
 def discover() -> list[str]:
