@@ -16,7 +16,8 @@ A markdown sentence names a claim with an invisible ``<!-- claim: ID -->`` and
 ``tools/lessons_check.py`` compares the sentence with the claim's stored output: every number
 of the sentence (``$...$`` included) must be one of the claim's printed values (or be bounded by
 them: "more than 70", "about 30 %", "3-5"), every magnitude word (``MAGNITUDES``: "several",
-"tens", "twice", ...) must fit one of them, and every verdict word (``VERDICTS``: "faster",
+"tens", "twice", ...) must fit one of them, every share word (``FRACTIONS``: "a fifth", "most
+of", ...) a printed share, and every verdict word (``VERDICTS``: "faster",
 "only", "never", ...) must appear in the claim's statement. This module holds those meanings,
 written once, and the number reading both sides share.
 """
@@ -28,8 +29,8 @@ import re
 from dataclasses import dataclass
 from numbers import Integral, Real
 
-__all__ = ["ClaimError", "claim", "MAGNITUDES", "VERDICTS", "NO_CLAIM_REASONS", "Number",
-           "numbers_in", "normalise", "Printed", "parse_printed", "fits"]
+__all__ = ["ClaimError", "claim", "MAGNITUDES", "FRACTIONS", "share_range", "VERDICTS", "NO_CLAIM_REASONS",
+           "Number", "numbers_in", "normalise", "Printed", "parse_printed", "fits"]
 
 
 class ClaimError(AssertionError):
@@ -88,6 +89,44 @@ MAGNITUDES: dict[str, tuple[tuple[float, float], ...]] = {
     r"halves|halved|half(?= the| as)": ((1.8, 2.2), (0.45, 0.556)),
     r"thrice|triples?|tripled|three-?fold": ((2.7, 3.3), (0.303, 0.37)),
     r"quarters|quartered|four-?fold": ((3.6, 4.4), (0.227, 0.278)),
+}
+
+
+def share_range(share: float) -> tuple[float, float]:
+    """Give the two-sided meaning (lo, hi) of a share word of nominal value ``share``.
+
+    A share up to one half is read within 10 % as a factor, like "twice" (1.8-2.2): "a fifth"
+    is 1/5.5-1/4.5. A larger share is read by its complement the same way (two thirds kept = a
+    third lost: 0.630-0.697), so "nine in ten" never admits all.
+    """
+    if share <= 0.5:
+        return share / 1.1, share / 0.9
+    lo, hi = share_range(1.0 - share)
+    return 1.0 - hi, 1.0 - lo
+
+
+_SHARE_WORDS = {
+    r"(?:a|one)[ -]half|half(?= of\b| its\b| their\b)|one in two": 1 / 2,
+    r"(?:a|one)[ -]third|one in three": 1 / 3,
+    r"two[ -]thirds|two in three": 2 / 3,
+    r"(?:a|one)[ -]quarter|one in four": 1 / 4,
+    r"three[ -]quarters|three in four": 3 / 4,
+    r"(?:a|one)[ -]fifth|one in five": 1 / 5,
+    r"two[ -]fifths|two in five": 2 / 5,
+    r"three[ -]fifths|three in five": 3 / 5,
+    r"four[ -]fifths|four in five": 4 / 5,
+    r"(?:a|one)[ -]tenth|one in ten": 1 / 10,
+    r"nine[ -]tenths|nine in ten": 9 / 10,
+}
+
+#: Share words (fractions and proportions): a sentence that uses one needs a printed value of its
+#: claim, read as a share (a value in 0-1, or a percent printed with "%"), in the range (lo, hi);
+#: a bound in front bounds the share by its nominal value ("more than half": above 0.5, "less than
+#: a third": below 1/3, "half of it or more": at least 0.5). Entries: (nominal, lo, hi).
+FRACTIONS: dict[str, tuple[float, float, float]] = {
+    **{words: (share, *share_range(share)) for words, share in _SHARE_WORDS.items()},
+    r"most(?= of\b)|the majority|a majority": (0.5, 0.5, 1.0),
+    r"a minority": (0.5, 0.0, 0.5),
 }
 
 #: Words of a verdict (comparatives, superlatives, absolutes, qualitative outcomes): a sentence
@@ -200,11 +239,16 @@ def numbers_in(text: str) -> list[Number]:
 
 @dataclass(frozen=True)
 class Printed:
-    """One stored ``claim holds`` line: its id, statement and printed values."""
+    """One stored ``claim holds`` line: its id, statement and printed values.
+
+    ``shares`` are the values that read as a share of a whole: a value in 0-1, or a percent
+    (printed with ``%``) divided by 100.
+    """
 
     id: str
     statement: str
     values: tuple[tuple[float, float], ...]      # (value, half a unit of its last digit)
+    shares: tuple[tuple[float, float], ...] = ()
 
 
 _HOLDS = re.compile(r"^claim holds: \[([\w.\-]+)\] (.*)$", re.MULTILINE)
@@ -219,8 +263,11 @@ def parse_printed(output: str) -> list[Printed]:
         if sep and tail.endswith(")") and re.match(r"[A-Za-z_]\w* = ", tail):
             statement, values = head, tail[:-1]
         values = re.sub(r"\b[A-Za-z_]\w* = ", " ", values)
-        claims.append(Printed(m.group(1), statement,
-                              tuple((n.value, n.half_ulp) for n in numbers_in(values))))
+        numbers = numbers_in(values)
+        scaled = [(n.value / 100, n.half_ulp / 100) if re.match(r"\s*(?:%|\\%)", values[n.end:])
+                  else (n.value, n.half_ulp) for n in numbers]
+        claims.append(Printed(m.group(1), statement, tuple((n.value, n.half_ulp) for n in numbers),
+                              tuple((v, h) for v, h in scaled if v - h <= 1.0)))
     return claims
 
 

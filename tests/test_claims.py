@@ -44,3 +44,18 @@ def test_a_number_fits_its_printed_value_to_its_own_digits_only():
 
 def test_a_multiple_of_a_root_is_one_number():
     assert [round(n.value, 6) for n in numbers_in(r"RK4 reaches $2\sqrt 2$, i.e. 2√2")] == [2.828427, 2.8]
+
+
+def test_shares_are_ratios_in_0_1_or_percents_printed_with_their_sign():
+    (p,) = parse_printed("claim holds: [s] it loses energy  (ratio = 0.21, lost = 62 %, k = 178, n = 31)\n")
+    assert [v for v, _ in p.shares] == [0.21, 0.62]
+    assert p.shares[1][1] == 0.005                      # half a unit of "62 %", as a share
+
+
+def test_share_words_have_two_sided_meanings_symmetric_in_the_complement():
+    from mslab.claims import FRACTIONS, share_range
+    assert share_range(0.5) == (0.5 / 1.1, 0.5 / 0.9)   # as "half" among the magnitude words
+    lo, hi = share_range(0.9)
+    assert (round(lo, 6), round(hi, 6)) == (round(1 - 0.1 / 0.9, 6), round(1 - 0.1 / 1.1, 6))
+    for nominal, lo, hi in FRACTIONS.values():
+        assert 0 <= lo <= nominal <= hi <= 1

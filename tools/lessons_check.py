@@ -12,7 +12,7 @@ A sentence *needs backing* when, outside code, links' targets, headings and cita
 "lesson 04", "§2.3", names such as ``rk4`` or "2D", list markers "1."), it contains a number
 (inside ``$...$`` too, where a side of a relation is purely numeric: ``$k = 100$``,
 ``$|R| = 1/2$``, ``$10^{-4}$``, not ``$O(h^2)$``), a magnitude word or a verdict word
-(``mslab.claims.MAGNITUDES``, ``mslab.claims.VERDICTS``).
+(``mslab.claims.MAGNITUDES``, ``mslab.claims.FRACTIONS``, ``mslab.claims.VERDICTS``).
 
 A sentence is *backed* by an HTML comment inside it or right after its end; a comment at the
 very start of a paragraph, block quote or list item covers that whole block:
@@ -30,6 +30,11 @@ very start of a paragraph, block quote or list item covers that whole block:
     ("seven times", "tenfold", "a factor of three"), other number words are not compared;
   - every magnitude word ("several", "tens", "twice", "halves", ...) has a printed value in
     its range, written once in ``mslab.claims.MAGNITUDES``;
+  - every share word ("a fifth", "two thirds", "one in four", "nine in ten", "most of", "the
+    majority", ...) has a printed share (a value in 0-1, or a percent printed with ``%``) in its
+    range, written once in ``mslab.claims.FRACTIONS``; a bound in front bounds the share by its
+    nominal value: "more than half" needs a share above 0.5, "over a third" one above 1/3, "less
+    than half the limit" one below 0.5, "half of it or more" one of at least 0.5;
   - every verdict word ("faster", "only", "never", "same", "bounded", ...) appears in the
     statement of one of its claims.
 
@@ -55,21 +60,28 @@ import nbformat
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 from mslab.claims import (  # noqa: E402
+    FRACTIONS,
     MAGNITUDES,
     NO_CLAIM_REASONS,
     VERDICTS,
+    Number,
     Printed,
     fits,
     normalise,
     numbers_in,
     parse_printed,
+    share_range,
 )
 
 LESSONS = ROOT / "lessons"
 
-VERDICT = re.compile(rf"\b(?:{VERDICTS})\b", re.IGNORECASE)
+VERDICT = re.compile(rf"(?<!\bat\s)\b(?:{VERDICTS})\b", re.IGNORECASE)     # "at most 3" is a bound
 MAGNITUDE = [(re.compile(rf"\b(?:{words})\b(?!-)", re.IGNORECASE), ranges)
              for words, ranges in MAGNITUDES.items()]
+# share words, not in a mixed number ("one and a quarter"); after a bound, "half" not before "a(n)"
+FRACTION = [(re.compile(rf"(?<!and )\b(?:{words})\b(?!-)", re.IGNORECASE), share)
+            for words, share in FRACTIONS.items()]
+HALF = re.compile(r"\bhalf\b(?!-|\s+an?\b)", re.IGNORECASE)     # "less than half", not "half a minute"
 COMMENT = re.compile(r"<!--\s*(claim|no-claim)\s*:\s*(.*?)\s*-->", re.DOTALL)
 CLAIM_ID = re.compile(r"""\bid\s*=\s*(?:f?["'])([\w.\-]+)["']""")
 MATH = re.compile(r"\$\$.*?\$\$|(?<!\\)\$[^$]+?(?<!\\)\$", re.DOTALL)
@@ -98,16 +110,22 @@ MASKS = [
 ABBREVIATIONS = re.compile(r"\b(?:e\.g|i\.e|vs|cf|approx|etc|eqs?|resp|no)\.", re.IGNORECASE)
 SENTENCE_END = re.compile(r"[.!?:;](?=\s+[^a-z\s])|\n\s*\n|\n(?=\s*(?:\d+[.)]|[-*+])\s)")
 LEAD_COMMENT = re.compile(r"\s*(?:>\s*)?(?:(?:\d+[.)]|[-*+])\s+)?(?:\*\*)?\s*<!--\s*(?:no-)?claim\s*:")
-ABOVE = re.compile(r"(?:more than|over|above|greater than|exceeds?|exceeding|at least|beyond|[>≥])\s*$",
-                   re.IGNORECASE)
-BELOW = re.compile(r"(?:less than|fewer than|below|under|at most|within|up to|no more than|smaller than|"
-                   r"[<≤])\s*$", re.IGNORECASE)
-ABOUT = re.compile(r"(?:about|around|roughly|approximately|nearly|almost|close to|some|~|≈)\s*$",
-                   re.IGNORECASE)
+
+
+def _bound(words: str, signs: str) -> re.Pattern:
+    """Words (or signs) of a bound at the end of the text before a number; a space matches any white space."""
+    spaced = words.replace(" ", r"\s+")
+    return re.compile(rf"(?:\b(?<!\bno\s)(?:{spaced})|[{signs}])\s*$", re.IGNORECASE)
+
+
+ABOVE = _bound("more than|over|above|greater than|exceeds?|exceeding|at least|beyond", ">≥")
+BELOW = _bound("less than|fewer than|below|under|at most|within|up to|no more than|smaller than", "<≤")
+ABOUT = _bound("about|around|roughly|approximately|nearly|almost|close to|some", "~≈")
 DETAILS = re.compile(r"<details>.*?</details>", re.DOTALL)     # a folded solution of a task
-OR_MORE = re.compile(r"\s*(?:or more|or above|or larger|and more|\+)\b", re.IGNORECASE)
-OR_LESS = re.compile(r"\s*(?:or less|or fewer|or below|or smaller)\b", re.IGNORECASE)
+OR_MORE = re.compile(r"\s*(?:or\s+more|or\s+above|or\s+larger|and\s+more|\+)\b", re.IGNORECASE)
+OR_LESS = re.compile(r"\s*(?:or\s+less|or\s+fewer|or\s+below|or\s+smaller)\b", re.IGNORECASE)
 RANGE_JOIN = re.compile(r"\s*(?:[-–]|to)\s*$")
+OF_WHAT = r"(?:\s+of\s+(?:\w+\s+)?[\w']+)?"                  # "half of it or more"
 
 
 @dataclass
@@ -197,9 +215,43 @@ def _sentences(text: str, blank: str, start: int, end: int) -> list[tuple[int, i
     return [(a, b) for a, b in zip(cuts, cuts[1:], strict=False) if text[a:b].strip()]
 
 
+def share_words(numeric: str) -> list[tuple[re.Match, tuple[float, float, float]]]:
+    """The share words of a sentence (``mslab.claims.FRACTIONS``), with (nominal, lo, hi); a
+    "half" after a bound ("less than half", "more than half the limit") is a share too."""
+    found = [(m, share) for pattern, share in FRACTION for m in pattern.finditer(numeric)]
+    half = (0.5, *share_range(0.5))
+    found += [(m, half) for m in HALF.finditer(numeric)
+              if (ABOVE.search(numeric[:m.start()]) or BELOW.search(numeric[:m.start()]))
+              and not any(f.start() <= m.start() < f.end() for f, _ in found)]
+    return sorted(found, key=lambda f: f[0].start())
+
+
+def _outside(m: re.Match, spans: list[tuple[re.Match, object]]) -> bool:
+    return not any(f.start() < m.end() and m.start() < f.end() for f, _ in spans)
+
+
 def _needs_backing(numeric: str) -> bool:
-    return bool(numbers_in(numeric) or VERDICT.search(numeric)
+    return bool(numbers_in(numeric) or VERDICT.search(numeric) or share_words(numeric)
                 or any(p.search(numeric) for p, _ in MAGNITUDE))
+
+
+def share_problems(numeric: str, claims: list[Printed]) -> list[str]:
+    """The share words of one sentence that no printed share (0-1, or a percent) makes true."""
+    shares = tuple(v for p in claims for v in p.shares)
+    problems = []
+    for m, (nominal, lo, hi) in share_words(numeric):
+        bound = Number(nominal, 0.0, 0, 0, "")
+        before, after = numeric[:m.start()], numeric[m.end():]
+        if ABOVE.search(before) or re.match(OF_WHAT + OR_MORE.pattern, after, re.IGNORECASE):
+            ok, meaning = fits("above", bound, None, shares), f"above {nominal:.3g}"
+        elif BELOW.search(before) or re.match(OF_WHAT + OR_LESS.pattern, after, re.IGNORECASE):
+            ok, meaning = fits("below", bound, None, shares), f"below {nominal:.3g}"
+        else:
+            ok, meaning = fits("magnitude", None, (lo, hi), shares), f"in {lo:.3g}-{hi:.3g}"
+        if not ok:
+            problems.append(f"'{m.group(0)}' (a share {meaning}, printed as a ratio or a %): "
+                            f"no printed value fits")
+    return problems
 
 
 def claims_of(nb: nbformat.NotebookNode) -> tuple[set[str], dict[str, Printed]]:
@@ -245,8 +297,9 @@ def disagreements(numeric: str, claims: list[Printed]) -> list[str]:
             ok, label = fits(kind, n, None, values), (n.text if kind == "equal" else f"{kind} {n.text}")
         if not ok:
             problems.append(f"{label.strip()}: no printed value fits")
+    shares = share_words(numeric)
     for pattern, ranges in MAGNITUDE:
-        for m in pattern.finditer(numeric):
+        for m in filter(lambda m: _outside(m, shares), pattern.finditer(numeric)):
             before = numeric[:m.start()]
             if ABOVE.search(before):                  # "more than twice": above the range's lower end
                 ranges = tuple((lo, float("inf")) for lo, _ in ranges[:1])
@@ -254,10 +307,10 @@ def disagreements(numeric: str, claims: list[Printed]) -> list[str]:
                 ranges = tuple((0.0, hi) for _, hi in ranges[-1:])
             if not any(fits("magnitude", None, r, values) for r in ranges):
                 problems.append(f"'{m.group(0)}': no printed value in {ranges}")
-    for m in VERDICT.finditer(numeric):
+    for m in filter(lambda m: _outside(m, shares), VERDICT.finditer(numeric)):
         if not re.search(rf"\b{re.escape(_root(m.group(0)))}", statements):
             problems.append(f"'{m.group(0)}' is in no claim's statement")
-    return problems
+    return problems + share_problems(numeric, claims)
 
 
 def _backing(comments: list[re.Match], defined: set[str]) -> tuple[list[str] | None, str | None]:
