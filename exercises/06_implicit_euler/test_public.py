@@ -9,9 +9,9 @@ from mslab.grading.problems import problem
 MODULE = "implicit_euler"
 
 
-def stiff_chain():
+def stiff_chain(gamma=0.0):
     # k = 1e4 on a chain of mass 1: w ~ sqrt(k/m) ~ 200, explicit methods need dt < 0.005
-    prob = problem("chain", n=6, dim=2, stiffness=1e4, sag=0.4)
+    prob = problem("chain", n=6, dim=2, stiffness=1e4, gamma=gamma, sag=0.4)
     v0 = np.random.default_rng(6).normal(size=prob.x0.shape) * (~prob.pinned)[:, None]
     return prob, v0
 
@@ -32,9 +32,15 @@ def check_solves_implicit_euler(prob, x, v, x_new, v_new, dt, tol):
 
 @pytest.mark.points(3)
 def test_newton_solves_a_stiff_step(student):
-    prob, v0 = stiff_chain()
-    x, v, _ = triple(student.implicit_euler_newton(prob.x0, v0, prob, 0.01), prob.x0.shape)
+    prob, v0 = stiff_chain(gamma=2.0)
+    x, v, n_iter = triple(student.implicit_euler_newton(prob.x0, v0, prob, 0.01), prob.x0.shape)
     check_solves_implicit_euler(prob, prob.x0, v0, x, v, 0.01, 1e-8)
+    # Newton's convergence is quadratic: a handful of corrections (the library's takes 5). Many more
+    # solve the step too, slowly: the matrix is then not the Jacobian of g
+    assert isinstance(n_iter, int) and 1 <= n_iter <= 8, (
+        f"n_iter = {n_iter!r}, expected 1 to 8: likely mistake: Newton's matrix is missing a term "
+        "(it is I - h (h K + D), with the drag's D)" if isinstance(n_iter, int) and n_iter > 8
+        else f"n_iter = {n_iter!r}, expected a whole number from 1 to 8")
 
 
 @pytest.mark.points(2)

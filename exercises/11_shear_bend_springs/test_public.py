@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from mslab.grading.checks import as_numbers, check_array, check_shape
+from mslab.grading.checks import as_numbers, check_array, check_known, check_shape
 from mslab.scenes import grid_springs
 
 MODULE = "cloth_springs"
@@ -48,7 +48,9 @@ def test_the_shear_mode_is_free_for_structural_springs_only(student):
     x = as_numbers(student.sheared(n_rows, n_cols, h, theta), what="x")
     check_shape(x, (20, 2), what="x")
     i, j = np.divmod(np.arange(20), n_cols)
-    check_array(x[:, 1], i * h * np.cos(theta), what="y")
+    check_known((x[:, 1],), (i * h * np.cos(theta),), whats=("y",), mistakes={
+        "cos and sin swapped: the rows rise by h cos(theta) and move sideways by h sin(theta)":
+            (i * h * np.sin(theta),)})
     flat = np.stack([j * h, i * h], axis=1)
     structural, shear = grid_springs((n_rows, n_cols), "structural"), grid_springs((n_rows, n_cols), "shear")
     check_array(lengths(x, structural), lengths(flat, structural), rtol=1e-12, atol=1e-14,

@@ -7,7 +7,7 @@ import pytest
 
 from mslab import ExplicitRK
 from mslab.derive import order
-from mslab.grading.checks import as_numbers, check_array
+from mslab.grading.checks import as_numbers, check_array, check_known
 
 MODULE = "own_method"
 
@@ -24,7 +24,11 @@ def tableau(out):
 
 @pytest.mark.points(2)
 def test_residuals_of_kutta_and_of_a_second_order_method(student):
-    check_array(student.order3_conditions(*KUTTA3), np.zeros(4), atol=1e-14, what="Kutta's residuals")
+    A, b = KUTTA3
+    c = A.sum(axis=0)  # a common slip: the column sums
+    columns = np.array([b.sum() - 1, b @ c - 1 / 2, b @ c**2 - 1 / 3, b @ A @ c - 1 / 6])
+    check_known((student.order3_conditions(A, b),), (np.zeros(4),), whats=("Kutta's residuals",), atol=1e-14,
+                mistakes={"the nodes c = A 1 are the row sums of A, not its column sums": (columns,)})
     # Heun's second-order method (two stages): order 2 holds, the two order-3 conditions fail
     A = np.array([[0.0, 0.0], [1.0, 0.0]])
     b = np.array([0.5, 0.5])
@@ -37,7 +41,8 @@ def test_kutta_family_gives_kutta_and_heun3(student):
     for (c2, c3), (A, b) in (((0.5, 1.0), KUTTA3), ((1 / 3, 2 / 3), HEUN3)):
         got_A, got_b = tableau(student.kutta_family(c2, c3))
         check_array(got_A, A, atol=1e-13, what=f"A at c2 = {c2:.3g}, c3 = {c3:.3g}")
-        check_array(got_b, b, atol=1e-13, what=f"b at c2 = {c2:.3g}, c3 = {c3:.3g}")
+        check_known((got_b,), (b,), whats=(f"b at c2 = {c2:.3g}, c3 = {c3:.3g}",), atol=1e-13,
+                    mistakes={"b2 and b3 swapped: b2 goes with the node c2": (b[[0, 2, 1]],)})
 
 
 @pytest.mark.points(2)
