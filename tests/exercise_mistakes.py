@@ -12,22 +12,37 @@ Used by ``tests/test_exercise_feedback.py``.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 
 @dataclass(frozen=True)
 class Mistake:
-    """One planted mistake: the exercise, the code appended to its solution, what must fail."""
+    """One planted mistake: the exercise, how its solution is changed, what must fail.
+
+    ``code`` is appended to the solution (definitions that replace the right ones), or is a
+    tuple of ``(right, wrong)`` lines swapped in it.
+    """
 
     name: str
     exercise: str
     module: str
-    code: str
+    code: str | tuple[tuple[str, str], ...]
     fails: frozenset[str]
     named: dict[str, str] = field(default_factory=dict)
     maybe: frozenset[str] = frozenset()
 
+    def text(self, source: Path) -> str:
+        """The reference file of the exercise in ``source`` with this mistake planted."""
+        text = (source / self.exercise / self.module).read_text()
+        if isinstance(self.code, str):
+            return text + "\n" + self.code
+        for right, wrong in self.code:
+            assert right in text, (self.name, right)
+            text = text.replace(right, wrong)
+        return text
 
-def _m(name: str, exercise: str, module: str, code: str, fails: set[str], named: dict | None = None,
+
+def _m(name: str, exercise: str, module: str, code: str | tuple, fails: set[str], named: dict | None = None,
        maybe: set[str] | None = None) -> Mistake:
     def full(test: str) -> str:
         return test.replace("P:", "test_public.py::", 1).replace("H:", "test_hidden.py::", 1)
@@ -50,50 +65,9 @@ E10, M10 = "10_cheapest_method", "cheapest_method.py"
 E11, M11 = "11_shear_bend_springs", "cloth_springs.py"
 E12, M12 = "12_own_method", "own_method.py"
 
-_FORCES_01 = """
-def spring_forces(x, springs, stiffness, rest_length):
-    i, j = springs[:, 0], springs[:, 1]
-    d = x[i] - x[j]
-    length = np.linalg.norm(d, axis=1)
-    pair = ({scale})[:, None] * d
-    f = np.zeros_like(x, dtype=float)
-    np.add.at(f, i, pair)
-    np.add.at(f, j, {reaction}pair)
-    return f
-"""
-_JACOBIAN_01 = """
-def spring_jacobian(x, springs, stiffness, rest_length):
-    n, dim = x.shape
-    K = np.zeros((n * dim, n * dim))
-    eye = np.eye(dim)
-    for (i, j), k, rest in zip(springs, stiffness, rest_length):
-        d = x[i] - x[j]
-        length = np.linalg.norm(d)
-        u = d / length
-        uu = np.outer(u, u)
-        block = {block}
-        si, sj = slice(i * dim, (i + 1) * dim), slice(j * dim, (j + 1) * dim)
-        K[si, si] += block
-        K[sj, sj] += block
-        K[si, sj] -= block
-        K[sj, si] -= block
-    return K
-"""
-_NEWTON_06 = """
-def implicit_euler_newton(x, v, problem, dt, tol=1e-10, max_iter=20):
-    V = np.array(v, dtype=float)
-    eye = np.eye(V.size)
-    for k in range(max_iter + 1):
-        X = x + dt * V
-        g = V - v - dt * problem(X, V)
-        if np.max(np.abs(g)) <= tol:
-            return X, V, k
-        if k == max_iter:
-            break
-        K, D = problem.jacobians(X, V)
-        V = V + np.linalg.solve({matrix}, -g.ravel()).reshape(V.shape)
-    raise RuntimeError("no convergence")
-"""
+_PAIR_01 = "pair = (stiffness * (rest_length - length) / length)[:, None] * d"
+_BLOCK_01 = "block = -k * (uu + (1.0 - rest / length) * (eye - uu))"
+_NEWTON_06 = "np.linalg.solve(eye - dt * (dt * K + D), -g.ravel())"
 _N06 = {"P:test_newton_solves_a_stiff_step", "H:test_newton_matches_the_library_with_drag",
         "H:test_newton_needs_few_iterations", "H:test_newton_damps_a_stiff_oscillation",
         "H:test_newton_on_a_chain_drawn_at_grading"}
@@ -107,19 +81,19 @@ _J01 = {"P:test_jacobian_by_finite_differences", "H:test_jacobian_matches_the_li
 
 MISTAKES: list[Mistake] = [
     _m("01 force sign", E01, M01,
-       _FORCES_01.format(scale="stiffness * (length - rest_length) / length", reaction="-"), _F01,
+       ((_PAIR_01, _PAIR_01.replace("(rest_length - length)", "(length - rest_length)")),), _F01,
        {"P:test_single_stretched_spring": "the sign"}),
     _m("01 direction not normalised", E01, M01,
-       _FORCES_01.format(scale="stiffness * (rest_length - length)", reaction="-"), _F01,
+       ((_PAIR_01, _PAIR_01.replace(" / length", "")),), _F01,
        {"P:test_single_stretched_spring": "unit vector"}),
     _m("01 no reaction on j", E01, M01,
-       _FORCES_01.format(scale="stiffness * (rest_length - length) / length", reaction="0 * "),
+       (("np.add.at(f, j, -pair)", "np.add.at(f, j, 0 * pair)"),),
        _F01, {"P:test_single_stretched_spring": "opposite force on j"}),
     _m("01 Jacobian without the geometric term", E01, M01,
-       _JACOBIAN_01.format(block="-k * uu"), _J01,
+       ((_BLOCK_01, "block = -k * uu"),), _J01,
        {"P:test_jacobian_by_finite_differences": "(1 - L/l)(I - u u^T) of a stretched spring is missing"}),
     _m("01 Jacobian sign", E01, M01,
-       _JACOBIAN_01.format(block="k * (uu + (1.0 - rest / length) * (eye - uu))"), _J01,
+       ((_BLOCK_01, _BLOCK_01.replace("-k", "k")),), _J01,
        {"P:test_jacobian_by_finite_differences": "the sign of K"}),
 
     _m("02 symplectic Eulers swapped", E02, M02,
@@ -190,14 +164,7 @@ MISTAKES: list[Mistake] = [
         "H:test_student_rk4_tableau_drives_the_library"},
        {"P:test_rk4_tableau_reproduces_the_stages_of_the_course": "1/6, 1/3, 1/3, 1/6"}),
     _m("04 position slope is the old velocity", E04, M04,
-       "\ndef rk_step(x, v, accel, dt, A, b):\n"
-       "    A, b = np.asarray(A, dtype=float), np.asarray(b, dtype=float)\n    kx, kv = [], []\n"
-       "    for i in range(len(b)):\n"
-       "        xi = x + dt * sum((A[i, j] * kx[j] for j in range(i)), np.zeros_like(x))\n"
-       "        vi = v + dt * sum((A[i, j] * kv[j] for j in range(i)), np.zeros_like(v))\n"
-       "        kx.append(v)\n        kv.append(accel(xi, vi))\n"
-       "    return (x + dt * sum(bi * k for bi, k in zip(b, kx)),\n"
-       "            v + dt * sum(bi * k for bi, k in zip(b, kv)))\n",
+       (("kx.append(vi)", "kx.append(v)"),),
        {"P:test_rk_step_with_rk4_matches_the_library",
         "P:test_rk_step_with_euler_and_heun_tableaux",
         "H:test_rk4_through_the_stepper_is_fourth_order", "H:test_any_five_stage_tableau",
@@ -205,14 +172,7 @@ MISTAKES: list[Mistake] = [
        {"P:test_rk_step_with_rk4_matches_the_library": "stage's own velocity",
         "P:test_rk_step_with_euler_and_heun_tableaux": "stage's own velocity"}),
     _m("04 stages without h", E04, M04,
-       "\ndef rk_step(x, v, accel, dt, A, b):\n"
-       "    A, b = np.asarray(A, dtype=float), np.asarray(b, dtype=float)\n    kx, kv = [], []\n"
-       "    for i in range(len(b)):\n"
-       "        xi = x + sum((A[i, j] * kx[j] for j in range(i)), np.zeros_like(x))\n"
-       "        vi = v + sum((A[i, j] * kv[j] for j in range(i)), np.zeros_like(v))\n"
-       "        kx.append(vi)\n        kv.append(accel(xi, vi))\n"
-       "    return (x + dt * sum(bi * k for bi, k in zip(b, kx)),\n"
-       "            v + dt * sum(bi * k for bi, k in zip(b, kv)))\n",
+       (("xi = x + dt * sum", "xi = x + sum"), ("vi = v + dt * sum", "vi = v + sum")),
        {"P:test_rk_step_with_rk4_matches_the_library",
         "P:test_rk_step_with_euler_and_heun_tableaux",
         "H:test_rk4_through_the_stepper_is_fourth_order", "H:test_any_five_stage_tableau",
@@ -240,11 +200,13 @@ MISTAKES: list[Mistake] = [
         "H:test_leapfrog_stays_bounded_near_its_limit", "H:test_both_on_a_chain_drawn_at_grading"},
        {"P:test_leapfrog_steps_match_the_library": "new position"}),
 
-    _m("06 Newton matrix without the damping term", E06, M06, _NEWTON_06.format(matrix="eye - dt * dt * K"),
+    _m("06 Newton matrix without the damping term", E06, M06,
+       ((_NEWTON_06, _NEWTON_06.replace("(dt * K + D)", "dt * K")),),
        {"P:test_newton_solves_a_stiff_step"},
        {"P:test_newton_solves_a_stiff_step": "I - h (h K + D)"}),
-    _m("06 Newton matrix without h on K", E06, M06, _NEWTON_06.format(matrix="eye - dt * (K + D)"),
-       _N06, {"P:test_newton_solves_a_stiff_step": "RuntimeError: no convergence"},
+    _m("06 Newton matrix without h on K", E06, M06,
+       ((_NEWTON_06, _NEWTON_06.replace("dt * K + D", "K + D")),),
+       _N06, {"P:test_newton_solves_a_stiff_step": "RuntimeError"},
        {"H:test_newton_damps_a_stiff_oscillation"}),  # converges for some drawn k, h
     _m("06 fixed point never gives up", E06, M06,
        "\n_fp = implicit_euler_fixed_point\n"
@@ -290,31 +252,18 @@ MISTAKES: list[Mistake] = [
         "H:test_a_plane_drawn_at_grading"},
        {"P:test_depth_is_signed_distance_below_the_plane": "the sign"}),
     _m("08 friction along the whole velocity", E08, M08,
-       "\ndef plane_contact_force(x, v, normal, offset, stiffness, friction, slip_velocity):\n"
-       "    depth = penetration_depth(x, normal, offset)\n"
-       "    fn = np.where(depth > 0.0, stiffness * depth, 0.0)\n"
-       "    speed = np.sqrt(np.sum(v * v, axis=1) + slip_velocity**2)\n"
-       "    return fn[:, None] * normal[None, :] - (friction * fn / speed)[:, None] * v\n",
+       (("vt = v - (v @ normal)[:, None] * normal[None, :]", "vt = v"),),
        {"P:test_with_friction_matches_the_library", "H:test_tilted_plane_in_3d_matches_the_library",
         "H:test_friction_opposes_sliding_and_obeys_coulomb", "H:test_a_plane_drawn_at_grading"},
        {"P:test_with_friction_matches_the_library": "tangential"}),
     _m("08 force outside the wall too", E08, M08,
-       "\ndef plane_contact_force(x, v, normal, offset, stiffness, friction, slip_velocity):\n"
-       "    fn = stiffness * penetration_depth(x, normal, offset)\n"
-       "    vt = v - (v @ normal)[:, None] * normal[None, :]\n"
-       "    speed = np.sqrt(np.sum(vt * vt, axis=1) + slip_velocity**2)\n"
-       "    return fn[:, None] * normal[None, :] - (friction * np.abs(fn) / speed)[:, None] * vt\n",
+       (("fn = np.where(active, stiffness * depth, 0.0)", "fn = stiffness * depth"),),
        {"P:test_frictionless_push_is_a_spring", "P:test_with_friction_matches_the_library",
         "H:test_tilted_plane_in_3d_matches_the_library", "H:test_a_plane_drawn_at_grading"},
        {"P:test_frictionless_push_is_a_spring": "only particles with depth p > 0",
         "P:test_with_friction_matches_the_library": "only particles with depth p > 0"}),
     _m("08 friction not regularised", E08, M08,
-       "\ndef plane_contact_force(x, v, normal, offset, stiffness, friction, slip_velocity):\n"
-       "    depth = penetration_depth(x, normal, offset)\n"
-       "    fn = np.where(depth > 0.0, stiffness * depth, 0.0)\n"
-       "    vt = v - (v @ normal)[:, None] * normal[None, :]\n"
-       "    speed = np.sqrt(np.sum(vt * vt, axis=1))\n"
-       "    return fn[:, None] * normal[None, :] - (friction * fn / speed)[:, None] * vt\n",
+       (("np.sum(vt * vt, axis=1) + slip_velocity**2", "np.sum(vt * vt, axis=1)"),),
        # at rest (v_t = 0) the unregularised friction is 0/0: the frictionless tests fail too
        {"P:test_with_friction_matches_the_library", "H:test_tilted_plane_in_3d_matches_the_library",
         "H:test_a_plane_drawn_at_grading", "P:test_frictionless_push_is_a_spring",
@@ -343,33 +292,28 @@ MISTAKES: list[Mistake] = [
        {"P:test_the_ledger_of_a_damped_chain_balances_along_rk4"},
        {"P:test_the_ledger_of_a_damped_chain_balances_along_rk4": "trapezoid"}),
     _m("09 band without the absolute value", E09, M09,
-       "\n_bd = band_and_drift\ndef band_and_drift(t, error):\n    _, rate = _bd(t, error)\n"
-       "    return float(np.max(error)), rate\n",
+       (("return float(np.max(np.abs(e))), float(slope)", "return float(np.max(e)), float(slope)"),),
        {"P:test_band_and_drift_of_a_synthetic_error", "H:test_chain_and_error_drawn_at_grading",
         "H:test_leapfrog_band_shrinks_four_times_when_h_halves"},
        {"P:test_band_and_drift_of_a_synthetic_error": "|error|"}),
     _m("09 drift fitted on the whole run", E09, M09,
-       "\n_bd = band_and_drift\ndef band_and_drift(t, error):\n    band, _ = _bd(t, error)\n"
-       "    return band, float(np.polyfit(t, error, 1)[0])\n",
+       (("slope = np.polyfit(t[half], e[half], 1)[0]", "slope = np.polyfit(t, e, 1)[0]"),),
        {"P:test_band_and_drift_of_a_synthetic_error", "H:test_chain_and_error_drawn_at_grading"},
        {"P:test_band_and_drift_of_a_synthetic_error": "second half"}),
 
     _m("10 fit returns log C", E10, M10,
-       "\ndef fit_error_model(dts, errors):\n    p, log_c = np.polyfit(np.log(dts), np.log(errors), 1)\n"
-       "    return float(log_c), float(p)\n",
+       (("return float(math.exp(log_c)), float(p)", "return float(log_c), float(p)"),),
        {"P:test_fit_recovers_an_exact_and_a_noisy_power_law",
         "P:test_loose_target_goes_to_low_order_and_tight_to_high_order",
         "H:test_choice_from_runs_measured_by_the_library_reaches_the_target",
         "H:test_the_start_up_evaluation_decides_a_tie", "H:test_a_table_drawn_at_grading"},
        {"P:test_fit_recovers_an_exact_and_a_noisy_power_law": "log C, not C"}),
     _m("10 steps rounded, not ceiled", E10, M10,
-       "\ndef predicted_cost(h, t_end, evals_per_step, start_evals=0):\n    n = round(t_end / h)\n"
-       "    return int(n), int(n * evals_per_step + start_evals)\n",
+       (("n_steps = math.ceil(t_end / h)", "n_steps = round(t_end / h)"),),
        {"P:test_step_and_cost_of_one_method", "H:test_a_table_drawn_at_grading"},
        {"P:test_step_and_cost_of_one_method": "ceiling"}),
     _m("10 start-up evaluations forgotten", E10, M10,
-       "\ndef predicted_cost(h, t_end, evals_per_step, start_evals=0):\n    n = math.ceil(t_end / h)\n"
-       "    return int(n), int(n * evals_per_step)\n",
+       (("int(n_steps * evals_per_step + start_evals)", "int(n_steps * evals_per_step)"),),
        {"P:test_step_and_cost_of_one_method",
         "H:test_choice_from_runs_measured_by_the_library_reaches_the_target",
         "H:test_the_start_up_evaluation_decides_a_tie", "H:test_a_table_drawn_at_grading"},
@@ -417,13 +361,6 @@ MISTAKES: list[Mistake] = [
         "H:test_my_method_has_the_third_order_stability_function"},
        {"P:test_kutta_family_gives_kutta_and_heun3": "b2 and b3 swapped"}),
     _m("12 rk3 step with the old velocity as position slope", E12, M12,
-       "\ndef rk3_step(x, v, accel, dt, A, b):\n"
-       "    A, b = np.asarray(A, dtype=float), np.asarray(b, dtype=float)\n    kx, kv = [], []\n"
-       "    for i in range(len(b)):\n"
-       "        xi = x + dt * sum(A[i, j] * kx[j] for j in range(i))\n"
-       "        vi = v + dt * sum(A[i, j] * kv[j] for j in range(i))\n"
-       "        kx.append(v)\n        kv.append(accel(xi, vi))\n"
-       "    return (x + dt * sum(bi * k for bi, k in zip(b, kx)),\n"
-       "            v + dt * sum(bi * k for bi, k in zip(b, kv)))\n",
+       (("kx.append(vi)", "kx.append(v)"),),
        {"H:test_rk3_step_converges_with_order_three"}, {}),
 ]

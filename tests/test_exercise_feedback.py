@@ -40,10 +40,9 @@ def functions_of(exercise: str, filename: str) -> dict:
 
 
 def planted(mistake: Mistake) -> types.ModuleType:
-    """The exercise's reference file with the mistake appended, as a module."""
-    text = (SOURCE / mistake.exercise / mistake.module).read_text() + "\n" + mistake.code
+    """The exercise's reference file with the mistake planted, as a module."""
     module = types.ModuleType(Path(mistake.module).stem)
-    exec(compile(text, mistake.module, "exec"), module.__dict__)  # noqa: S102 - our own planted text
+    exec(compile(mistake.text(SOURCE), mistake.module, "exec"), module.__dict__)  # noqa: S102 - our own text
     return module
 
 
@@ -95,7 +94,7 @@ def test_the_grader_reports_the_same_one_line_reasons(tmp_path):
     for k, m in enumerate(chosen):
         folder = tmp_path / "class" / f"s{k}" / m.exercise
         folder.mkdir(parents=True)
-        folder.joinpath(m.module).write_text((SOURCE / m.exercise / m.module).read_text() + "\n" + m.code)
+        folder.joinpath(m.module).write_text(m.text(SOURCE))
     results = {Path(r.submission).name: r for r in grade([tmp_path / "class"], source=SOURCE, jobs=2,
                                                          only=sorted({m.exercise for m in chosen}))}
     phrases = {f"hidden test: {p}" for p in PHRASES.values()}

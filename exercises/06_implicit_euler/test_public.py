@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from mslab.grading.checks import check_array, check_raises, check_shape
+from mslab.grading.checks import as_count, check_array, check_raises, check_shape
 from mslab.grading.problems import problem
 
 MODULE = "implicit_euler"
@@ -37,10 +37,10 @@ def test_newton_solves_a_stiff_step(student):
     check_solves_implicit_euler(prob, prob.x0, v0, x, v, 0.01, 1e-8)
     # Newton's convergence is quadratic: a handful of corrections (the library's takes 5). Many more
     # solve the step too, slowly: the matrix is then not the Jacobian of g
-    assert isinstance(n_iter, int) and 1 <= n_iter <= 8, (
-        f"n_iter = {n_iter!r}, expected 1 to 8: likely mistake: Newton's matrix is missing a term "
-        "(it is I - h (h K + D), with the drag's D)" if isinstance(n_iter, int) and n_iter > 8
-        else f"n_iter = {n_iter!r}, expected a whole number from 1 to 8")
+    n_iter = as_count(n_iter, "n_iter")
+    assert 1 <= n_iter <= 8, f"n_iter = {n_iter}, expected 1 to 8" + (
+        ": likely mistake: Newton's matrix is missing a term (it is I - h (h K + D), with the drag's D)"
+        if n_iter > 8 else "")
 
 
 @pytest.mark.points(2)

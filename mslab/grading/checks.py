@@ -201,6 +201,23 @@ def observed_order(run: Callable[[int], list], prob: Problem, v0: np.ndarray, t_
     return fitted_order([t_end / n for n in steps], errors)
 
 
+def step_order(step: Callable, rng: np.random.Generator, *args: Any) -> float:
+    """Return the observed order of ``step(x, v, accel, dt, *args) -> (x, v)`` on a spring drawn from ``rng``.
+
+    The spring swings sideways (:func:`swinging_spring`): nonlinear, no closed form to imitate.
+    """
+    prob, v0, t_end = swinging_spring(rng)
+
+    def run(n: int) -> list:
+        x, v, xs = prob.x0, v0, []
+        for _ in range(n):
+            x, v = step(x, v, prob, t_end / n, *args)
+            xs.append(x)
+        return xs
+
+    return observed_order(run, prob, v0, t_end)
+
+
 def check_known(outs: tuple, expected: tuple, mistakes: dict[str, tuple] | None = None,
                 whats: tuple[str, ...] = ("result",), rtol: float = 1e-10, atol: float = 1e-12) -> None:
     """Each of ``outs`` must be close to its ``expected``; a known mistake's answer is named.

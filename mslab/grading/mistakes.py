@@ -118,7 +118,7 @@ def plane_contact(x: np.ndarray, v: np.ndarray, normal: np.ndarray, offset: floa
     def force(fn: np.ndarray, along: np.ndarray, slip: float) -> tuple[np.ndarray]:
         speed = np.sqrt(np.sum(along * along, axis=1) + slip**2)
         with np.errstate(divide="ignore", invalid="ignore"):
-            return (fn[:, None] * normal[None, :] - (friction * np.abs(fn) / speed)[:, None] * along,)
+            return (fn[:, None] * normal[None, :] - (friction * fn / speed)[:, None] * along,)
 
     return {"a force outside the wall: only particles with depth p > 0 are pushed":
             force(stiffness * depth, vt, slip),
