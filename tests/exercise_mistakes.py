@@ -217,7 +217,8 @@ MISTAKES: list[Mistake] = [
        {"P:test_fixed_point_refuses_a_large_step": "expected RuntimeError, nothing was raised"}),
     _m("06 Newton returns an explicit Euler step", E06, M06,
        "\ndef implicit_euler_newton(x, v, problem, dt, tol=1e-10, max_iter=20):\n"
-       "    v_new = v + dt * problem(x, v)\n    return x + dt * v_new, v_new, 1\n", _N06, {}),
+       "    v_new = v + dt * problem(x, v)\n    return x + dt * v_new, v_new, 1\n", _N06,
+       {"P:test_newton_solves_a_stiff_step": "an explicit step"}),
 
     _m("07 A transposed", E07, M07,
        "\n_sf = stability_function\ndef stability_function(A, b, z):\n"

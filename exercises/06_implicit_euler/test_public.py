@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from mslab.grading.checks import as_count, check_array, check_raises, check_shape
+from mslab.grading.checks import as_count, check_array, check_known, check_raises, check_shape
 from mslab.grading.problems import problem
 
 MODULE = "implicit_euler"
@@ -26,8 +26,11 @@ def triple(out, shape):
 def check_solves_implicit_euler(prob, x, v, x_new, v_new, dt, tol):
     # the defining equations of eq. 27 of the lecture notes, checked with the trusted acceleration
     check_array(x_new - x - dt * v_new, np.zeros_like(x), atol=tol, what="x_new - x - dt v_new")
-    check_array(v_new - v - dt * prob(x_new, v_new), np.zeros_like(v), atol=tol,
-                what="v_new - v - dt a(x_new, v_new)")
+    v_e = v + dt * prob(x, v)  # a common slip: the acceleration at the old state (an explicit step)
+    explicit = {"an explicit step, with a(x, v) at the old state: implicit Euler solves for the new "
+                "velocity": (v_e - v - dt * prob(x + dt * v_e, v_e),)}
+    check_known((v_new - v - dt * prob(x_new, v_new),), (np.zeros_like(v),), explicit,
+                whats=("v_new - v - dt a(x_new, v_new)",), atol=tol)
 
 
 @pytest.mark.points(3)
