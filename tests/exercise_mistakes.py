@@ -338,7 +338,9 @@ MISTAKES: list[Mistake] = [
        "    if kind != 'bend':\n        return _gs(n_rows, n_cols, kind)\n"
        "    return np.array([(i * n_cols + j, (i + 2) * n_cols + j + 2) for i in range(n_rows - 2)\n"
        "                     for j in range(n_cols - 2)]).reshape(-1, 2)\n",
-       {"H:test_bend_springs_skip_one_particle", "H:test_grids_drawn_at_grading"}, {}),
+       {"P:test_bend_springs_of_a_4_by_5_grid", "H:test_bend_springs_skip_one_particle",
+        "H:test_grids_drawn_at_grading"},
+       {"P:test_bend_springs_of_a_4_by_5_grid": "not along diagonals"}),
     _m("11 shear with cos and sin swapped", E11, M11,
        "\ndef sheared(n_rows, n_cols, spacing, theta):\n"
        "    i, j = np.divmod(np.arange(n_rows * n_cols), n_cols)\n"
@@ -363,5 +365,6 @@ MISTAKES: list[Mistake] = [
        {"P:test_kutta_family_gives_kutta_and_heun3": "b2 and b3 swapped"}),
     _m("12 rk3 step with the old velocity as position slope", E12, M12,
        (("kx.append(vi)", "kx.append(v)"),),
-       {"H:test_rk3_step_converges_with_order_three"}, {}),
+       {"P:test_rk3_step_with_kutta_matches_the_library", "H:test_rk3_step_converges_with_order_three"},
+       {"P:test_rk3_step_with_kutta_matches_the_library": "stage's own velocity"}),
 ]

@@ -42,6 +42,17 @@ def test_shear_springs_are_both_diagonals_of_every_cell(student):
     assert got == as_set(grid_springs((4, 3), "shear"), 12), "not the two diagonals of each cell"
 
 
+@pytest.mark.points(1)
+def test_bend_springs_of_a_4_by_5_grid(student):
+    got = as_set(student.grid_springs(4, 5, "bend"), 20)
+    expected = as_set(grid_springs((4, 5), "bend"), 20)
+    diagonal = {tuple(sorted((i * 5 + j, (i + 2) * 5 + j + s))) for i in range(2) for j in range(5)
+                for s in (-2, 2) if 0 <= j + s < 5}
+    assert got == expected, f"{len(got)} bend springs, expected {len(expected)}" + (
+        ": likely mistake: bend springs skip one particle along rows and columns, not along diagonals"
+        if got - expected and got - expected <= diagonal else "")
+
+
 @pytest.mark.points(2)
 def test_the_shear_mode_is_free_for_structural_springs_only(student):
     n_rows, n_cols, h, theta = 4, 5, 0.2, np.radians(25.0)

@@ -21,7 +21,7 @@ def tableau(out):
     return A, b
 
 
-@pytest.mark.points(2)
+@pytest.mark.points(1)
 def test_kutta_family_at_nodes_drawn_at_grading(student):
     rng = np.random.default_rng()
     for _ in range(3):
