@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from mslab.effects.springs import Springs
-from mslab.grading.checks import check_array, check_shape
+from mslab.grading import mistakes
+from mslab.grading.checks import check_array, check_known, check_shape
 
 MODULE = "spring_force"
 
@@ -17,8 +18,10 @@ def mslab_springs(springs, stiffness, rest_length, n):
 def test_single_stretched_spring(student):
     # two particles 1.5 apart, rest length 1, k = 10: pulled together with |f| = 5
     x = np.array([[0.0, 0.0], [1.5, 0.0]])
-    f = student.spring_forces(x, np.array([[0, 1]]), np.array([10.0]), np.array([1.0]))
-    check_array(f, np.array([[5.0, 0.0], [-5.0, 0.0]]), what="forces")
+    springs, k, rest = np.array([[0, 1]]), np.array([10.0]), np.array([1.0])
+    f = student.spring_forces(x, springs, k, rest)
+    check_known((f,), (np.array([[5.0, 0.0], [-5.0, 0.0]]),), mistakes.spring_forces(x, springs, k, rest),
+                whats=("forces",))
 
 
 @pytest.mark.points(2)
@@ -28,7 +31,8 @@ def test_forces_of_a_small_net(student):
     springs = np.array([[0, 1], [1, 2], [2, 3], [3, 4], [0, 2], [1, 4]])
     k, rest = rng.uniform(1, 50, 6), rng.uniform(0.5, 1.5, 6)
     expected = mslab_springs(springs, k, rest, 5).force(x, np.zeros_like(x))
-    check_array(student.spring_forces(x, springs, k, rest), expected, rtol=1e-10, atol=1e-10, what="forces")
+    check_known((student.spring_forces(x, springs, k, rest),), (expected,),
+                mistakes.spring_forces(x, springs, k, rest), whats=("forces",), rtol=1e-10, atol=1e-10)
 
 
 @pytest.mark.points(1)
@@ -59,4 +63,5 @@ def test_jacobian_by_finite_differences(student):
         fp = ref.force(x + dx.reshape(3, 2), 0 * x).ravel()
         fm = ref.force(x - dx.reshape(3, 2), 0 * x).ravel()
         K[:, c] = (fp - fm) / (2 * eps)
-    check_array(student.spring_jacobian(x, springs, k, rest), K, rtol=1e-6, atol=1e-6, what="Jacobian")
+    check_known((student.spring_jacobian(x, springs, k, rest),), (K,),
+                mistakes.spring_jacobian(x, springs, k, rest, K), whats=("Jacobian",), rtol=1e-6, atol=1e-6)

@@ -3,8 +3,10 @@
 import numpy as np
 import pytest
 
-from mslab.grading.checks import check_array, check_shape, check_step, reference_run
+from mslab.grading import mistakes
+from mslab.grading.checks import check_known, check_shape, check_step, reference_run
 from mslab.grading.problems import problem
+from mslab.state import State
 
 MODULE = "euler_steps"
 
@@ -25,12 +27,14 @@ MISTAKES = {
         "the two symplectic Eulers are swapped (symplectic_euler_step updates v first, x with the new v)":
             reference_run("symplectic_euler_x", prob, prob.x0, v0, dt),
         "x moved with the old velocity (that is forward Euler)":
-            reference_run("euler", prob, prob.x0, v0, dt)},
+            reference_run("euler", prob, prob.x0, v0, dt),
+        **{hint: State(*old) for hint, old in mistakes.old_state(prob.x0, v0).items()}},
     "symplectic_euler_x": lambda prob, v0, dt: {
         "the two symplectic Eulers are swapped (symplectic_euler_x_step updates x first, v at the new x)":
             reference_run("symplectic_euler", prob, prob.x0, v0, dt),
         "v updated at the old position (that is forward Euler)":
-            reference_run("euler", prob, prob.x0, v0, dt)},
+            reference_run("euler", prob, prob.x0, v0, dt),
+        **{hint: State(*old) for hint, old in mistakes.old_state(prob.x0, v0).items()}},
 }
 
 
@@ -46,8 +50,11 @@ def test_forward_euler_on_an_oscillator(student):
     v0 = np.array([[0.0], [0.5]])
     x, v = one_step(student, "forward_euler_step", prob, 0.1, v=v0)
     # x'' = -4 u at u = 0.3 moving at 0.5: x gains 0.1 * 0.5, v gains -4 * 0.3 * 0.1 (both from the old state)
-    check_array(x, prob.x0 + np.array([[0.0], [0.05]]), what="x_new")
-    check_array(v, np.array([[0.0], [0.5 - 0.12]]), what="v_new")
+    symplectic = reference_run("symplectic_euler", prob, prob.x0, v0, 0.1)
+    known = {"x moved with the new velocity (that is symplectic Euler): forward Euler moves x and v from "
+             "the old state": (symplectic.x, symplectic.v), **mistakes.old_state(prob.x0, v0)}
+    check_known((x, v), (prob.x0 + np.array([[0.0], [0.05]]), np.array([[0.0], [0.5 - 0.12]])), known,
+                whats=("x_new", "v_new"))
 
 
 @pytest.mark.points(2)

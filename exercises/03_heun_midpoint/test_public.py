@@ -3,8 +3,10 @@
 import numpy as np
 import pytest
 
-from mslab.grading.checks import check_array, check_shape, check_step, reference_run
+from mslab.grading import mistakes
+from mslab.grading.checks import check_known, check_shape, check_step, reference_run
 from mslab.grading.problems import problem
+from mslab.state import State
 
 MODULE = "heun_midpoint"
 
@@ -22,8 +24,11 @@ HINTS = {"midpoint": "this is the midpoint method's step: Heun averages the slop
          "euler": "one Euler step: the second slope is missing"}
 
 
-def mistakes(other, prob, v0):
-    return {HINTS[m]: reference_run(m, prob, prob.x0, v0, 0.01) for m in (other, "euler")}
+def known(method, other, prob, v0):
+    """The steps of common mistakes of ``method``: the other method's, Euler's, slopes at wrong times."""
+    wrong = mistakes.heun_midpoint(method, prob, prob.x0, v0, 0.01)
+    wrong = {hint: State(*out) for hint, out in wrong.items()}
+    return {**{HINTS[m]: reference_run(m, prob, prob.x0, v0, 0.01) for m in (other, "euler")}, **wrong}
 
 
 def moving_chain():
@@ -46,8 +51,9 @@ def test_heun_on_a_swinging_spring_by_hand(student):
     v_mid = v0 + h * prob(x0 + h / 2 * v0, v0 + h / 2 * a0)
     assert np.max(np.abs(v_mid - v_heun)) > 1e-6  # the midpoint answer fails this test
     x, v = pair(student.heun_step(x0, v0, prob, h), (2, 2))
-    check_array(x, x_heun, what="x_new")
-    check_array(v, v_heun, what="v_new")
+    check_known((x, v), (x_heun, v_heun), {HINTS["midpoint"]: (x0 + h * (v0 + h / 2 * a0), v_mid),
+                                           **mistakes.heun_midpoint("heun", prob, x0, v0, h)},
+                whats=("x_new", "v_new"))
 
 
 @pytest.mark.points(2)
@@ -55,7 +61,7 @@ def test_heun_matches_the_library(student):
     prob, v0 = moving_chain()
     ref = reference_run("heun", prob, prob.x0, v0, 0.01)
     x, v = pair(student.heun_step(prob.x0, v0, prob, 0.01), (5, 2))
-    check_step(x, v, ref, mistakes=mistakes("midpoint", prob, v0))
+    check_step(x, v, ref, mistakes=known("heun", "midpoint", prob, v0))
 
 
 @pytest.mark.points(2)
@@ -63,4 +69,4 @@ def test_midpoint_matches_the_library(student):
     prob, v0 = moving_chain()
     ref = reference_run("midpoint", prob, prob.x0, v0, 0.01)
     x, v = pair(student.midpoint_step(prob.x0, v0, prob, 0.01), (5, 2))
-    check_step(x, v, ref, mistakes=mistakes("heun", prob, v0))
+    check_step(x, v, ref, mistakes=known("midpoint", "heun", prob, v0))

@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from mslab.grading.checks import check_array, check_known, check_shape, reference_run
+from mslab.grading import mistakes
+from mslab.grading.checks import check_known, check_shape, reference_run
 from mslab.grading.problems import problem
 
 MODULE = "verlet_leapfrog"
@@ -34,9 +35,10 @@ def test_verlet_steps_match_the_library(student):
     prob, v0 = start_state()
     x_prev, x = reference_run("verlet", prob, prob.x0, v0, 0.01, steps=0).memory[0], prob.x0
     ref = reference_run("verlet", prob, prob.x0, v0, 0.01, steps=5)
+    wrong = mistakes.verlet_leapfrog("verlet", prob, x, x_prev, 0.01, steps=5)
     for _ in range(5):
         x, x_prev = student.verlet_step(x, x_prev, prob, 0.01), x
-    check_array(x, ref.x, rtol=1e-10, atol=1e-12, what="x after 5 steps")
+    check_known((x,), (ref.x,), wrong, whats=("x after 5 steps",), rtol=1e-10, atol=1e-12)
 
 
 @pytest.mark.points(1)
@@ -55,10 +57,11 @@ def test_leapfrog_steps_match_the_library(student):
     prob, v0 = start_state()
     x, vh = prob.x0, reference_run("leapfrog", prob, prob.x0, v0, 0.01, steps=0).memory[0]
     ref = reference_run("leapfrog", prob, prob.x0, v0, 0.01, steps=5)
+    wrong = mistakes.verlet_leapfrog("leapfrog", prob, x, vh, 0.01, steps=5)
     for _ in range(5):
         out = student.leapfrog_step(x, vh, prob, 0.01)
         assert isinstance(out, tuple | list) and len(out) == 2, "return (x_next, v_half_next)"
         x, vh = out
     check_shape(x, prob.x0.shape, what="x")
-    check_array(x, ref.x, rtol=1e-10, atol=1e-12, what="x after 5 steps")
-    check_array(vh, ref.memory[0], rtol=1e-10, atol=1e-12, what="v_half after 5 steps")
+    check_known((x, vh), (ref.x, ref.memory[0]), wrong, whats=("x after 5 steps", "v_half after 5 steps"),
+                rtol=1e-10, atol=1e-12)

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from mslab.grading.checks import check_array, check_scalar
+from mslab.grading.checks import check_known, check_scalar
 from mslab.integrators import get_method
 from mslab.stability import real_interval
 
@@ -17,7 +17,8 @@ def test_forward_euler_is_one_plus_z(student):
     # eq. 32 of the lecture notes: one Euler step multiplies y by (1 + h lam)
     euler = get_method("euler")
     z = np.array([-1.5 + 0.5j, 0.3j, -2.0, 0.25])
-    check_array(student.stability_function(euler.A, euler.b, z), 1.0 + z, what="R(z)")
+    check_known((student.stability_function(euler.A, euler.b, z),), (1.0 + z,),
+                {"the leading 1 is missing: R(z) = 1 + z b^T (I - z A)^-1 1": (z,)}, whats=("R(z)",))
 
 
 @pytest.mark.points(2)
@@ -26,14 +27,22 @@ def test_rk4_is_the_taylor_polynomial(student):
     re, im = np.meshgrid(np.linspace(-3, 1, 5), np.linspace(-3, 3, 4))
     z = re + 1j * im
     expected = sum(z**k / math.factorial(k) for k in range(5))
-    check_array(student.stability_function(rk4.A, rk4.b, z), expected, rtol=1e-12, atol=1e-12, what="R(z)")
+    # a common slip, A transposed: its R(z) = 1 + z sum_k z^k b^T (A^T)^k 1 (A^T is nilpotent)
+    At, ones = rk4.A.T, np.ones(4)
+    transposed = 1.0 + z * sum(float(rk4.b @ np.linalg.matrix_power(At, k) @ ones) * z**k for k in range(4))
+    check_known((student.stability_function(rk4.A, rk4.b, z),), (expected,),
+                {"A transposed: stage i uses row i of A, R(z) = 1 + z b^T (I - z A)^-1 1": (transposed,),
+                 "the leading 1 is missing: R(z) = 1 + z b^T (I - z A)^-1 1": (expected - 1.0,)},
+                whats=("R(z)",), rtol=1e-12, atol=1e-12)
 
 
 @pytest.mark.points(2)
 def test_euler_and_heun_intervals_end_at_minus_two(student):
     for name in ("euler", "heun"):
         m = get_method(name)
-        check_scalar(student.real_stability_interval(m.A, m.b), -2.0, rtol=1e-9, what=f"{name}: a")
+        check_scalar(student.real_stability_interval(m.A, m.b), -2.0, rtol=1e-9, what=f"{name}: a", mistakes={
+            "a is the left end of [a, 0]: a negative number": 2.0,
+            "the end of the bracket (|R(-4)| > 1), not bisected down to where |R| = 1": -4.0})
     # not -2 for every method: RK4's interval reaches about -2.785 (the library's value)
     rk4 = get_method("rk4")
     check_scalar(student.real_stability_interval(rk4.A, rk4.b), float(real_interval("rk4")), rtol=1e-8,

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from mslab.effects.colliders import Plane
-from mslab.grading.checks import check_array, check_shape
+from mslab.grading import mistakes
+from mslab.grading.checks import check_known, check_shape
 
 MODULE = "penalty_collision"
 
@@ -14,14 +15,17 @@ NORMAL = np.array([0.0, 1.0])
 @pytest.mark.points(1)
 def test_depth_is_signed_distance_below_the_plane(student):
     x = np.array([[0.0, -0.1], [2.0, 0.3], [1.0, 0.0]])
-    check_array(student.penetration_depth(x, NORMAL, 0.0), np.array([0.1, -0.3, 0.0]), what="depth")
+    depth = np.array([0.1, -0.3, 0.0])
+    check_known((student.penetration_depth(x, NORMAL, 0.0),), (depth,), whats=("depth",),
+                mistakes={"the sign: the depth offset - n.x is positive inside the wall": (-depth,)})
 
 
 @pytest.mark.points(2)
 def test_frictionless_push_is_a_spring(student):
     x = np.array([[0.0, -0.1], [2.0, 0.3]])
     f = student.plane_contact_force(x, np.zeros_like(x), NORMAL, 0.0, 1000.0, 0.0, 1e-3)
-    check_array(f, np.array([[0.0, 100.0], [0.0, 0.0]]), what="force")
+    check_known((f,), (np.array([[0.0, 100.0], [0.0, 0.0]]),),
+                mistakes.plane_contact(x, np.zeros_like(x), NORMAL, 0.0, 1000.0, 0.0, 1e-3), whats=("force",))
 
 
 @pytest.mark.points(3)
@@ -31,4 +35,5 @@ def test_with_friction_matches_the_library(student):
     plane = Plane(NORMAL, 0.05, stiffness=2e3, friction=0.4, slip_velocity=1e-2)
     f = student.plane_contact_force(x, v, NORMAL, 0.05, 2e3, 0.4, 1e-2)
     check_shape(f, (8, 2), what="force")
-    check_array(f, plane.force(x, v), rtol=1e-10, atol=1e-10, what="force")
+    check_known((f,), (plane.force(x, v),), mistakes.plane_contact(x, v, NORMAL, 0.05, 2e3, 0.4, 1e-2),
+                whats=("force",), rtol=1e-10, atol=1e-10)

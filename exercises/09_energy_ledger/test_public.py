@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from mslab.grading.checks import as_numbers, check_array, check_scalar
+from mslab.grading.checks import as_numbers, check_known, check_scalar
 from mslab.grading.problems import problem
 from mslab.integrators import get_method
 from mslab.state import State
@@ -41,8 +41,13 @@ def test_kinetic_and_potential_energy_of_a_moving_chain(student):
     x = prob.x0 + 0.03 * rng.normal(size=prob.x0.shape) * (~prob.pinned)[:, None]
     v = rng.normal(size=prob.x0.shape) * (~prob.pinned)[:, None]
     K, U = energies_by_hand(prob, x, v)
-    check_scalar(student.kinetic_energy(v, prob), K, rtol=1e-10, what="K")
-    check_scalar(student.potential_energy(x, prob), U, rtol=1e-10, atol=1e-12, what="U")
+    gravity = -sum(prob.mass[i] * float(prob.gravity @ x[i]) for i in range(len(x)))
+    check_scalar(student.kinetic_energy(v, prob), K, rtol=1e-10, what="K", mistakes={
+        "the mass is missing: K = sum m_i |v_i|^2 / 2": 0.5 * float(np.sum(v**2)),
+        "the 1/2 is missing: K = sum m_i |v_i|^2 / 2": 2.0 * K})
+    check_scalar(student.potential_energy(x, prob), U, rtol=1e-10, atol=1e-12, what="U", mistakes={
+        "the sign of gravity's energy: it is -m g . x (lower is less energy)": U - 2.0 * gravity,
+        "gravity's energy is missing: U = springs - sum m_i g . x_i": U - gravity})
 
 
 @pytest.mark.points(2)
@@ -60,7 +65,9 @@ def test_the_ledger_of_a_damped_chain_balances_along_rk4(student):
         assert a.shape == (801,), f"{name}: shape {a.shape}, expected (801,)"
     P = prob.gamma * np.sum(vs[:, ~prob.pinned] ** 2, axis=(1, 2))
     D_ref = np.concatenate([[0.0], np.cumsum(0.5 * dt * (P[:-1] + P[1:]))])
-    check_array(D, D_ref, rtol=1e-9, atol=1e-12, what="D")
+    rectangles = np.concatenate([[0.0], np.cumsum(dt * P[:-1])])
+    check_known((D,), (D_ref,), {"the drag work by rectangles: book it by the trapezoid rule, "
+                                 "dt/2 (P_n + P_n+1)": (rectangles,)}, whats=("D",), rtol=1e-9, atol=1e-12)
     assert D[-1] > 0.2 * K[0], f"the drag removed only D = {D[-1]:.3g} J of K(0) = {K[0]:.3g} J"
     total = K + U + D
     drift = np.max(np.abs(total - total[0])) / np.max(K)
@@ -69,10 +76,13 @@ def test_the_ledger_of_a_damped_chain_balances_along_rk4(student):
 
 @pytest.mark.points(2)
 def test_band_and_drift_of_a_synthetic_error(student):
-    # a start-up transient in the first half, then a steady drift with an oscillation on top
+    # a start-up transient in the first half, then a steady loss with an oscillation on top
     t = np.linspace(0.0, 10.0, 1001)
-    e = 0.3 * np.exp(-3.0 * t) + 0.02 * np.sin(5.0 * t) + 0.003 * t
+    e = -(0.3 * np.exp(-3.0 * t) + 0.02 * np.sin(5.0 * t) + 0.003 * t)
     half = t >= 5.0
     band, rate = student.band_and_drift(t, e)
-    check_scalar(band, float(np.max(np.abs(e))), rtol=1e-12, what="band")
-    check_scalar(rate, float(np.polyfit(t[half], e[half], 1)[0]), rtol=1e-8, what="drift rate")
+    check_scalar(band, float(np.max(np.abs(e))), rtol=1e-12, what="band", mistakes={
+        "the band is the largest |error|, not the largest error": float(np.max(e))})
+    check_scalar(rate, float(np.polyfit(t[half], e[half], 1)[0]), rtol=1e-8, what="drift rate", mistakes={
+        "fitted over the whole run: the drift rate is the slope over the second half only":
+            float(np.polyfit(t, e, 1)[0])})

@@ -14,7 +14,8 @@ MODULE = "cheapest_method"
 def test_fit_recovers_an_exact_and_a_noisy_power_law(student):
     dts = [0.2, 0.1, 0.05, 0.025]
     C, p = student.fit_error_model(dts, [0.7 * h**2.5 for h in dts])
-    check_scalar(C, 0.7, rtol=1e-9, what="C")
+    check_scalar(C, 0.7, rtol=1e-9, what="C", mistakes={
+        "log C, not C: the fit's intercept is log C": math.log(0.7), "(C, p) swapped: the slope is p": 2.5})
     check_scalar(p, 2.5, rtol=1e-9, what="p")
     noisy = [3.0 * h * (1 + 0.2 * s) for h, s in zip(dts, (0.5, -1.0, 0.8, -0.3), strict=True)]
     slope, log_c = np.polyfit(np.log(dts), np.log(noisy), 1)
@@ -26,11 +27,16 @@ def test_fit_recovers_an_exact_and_a_noisy_power_law(student):
 @pytest.mark.points(2)
 def test_step_and_cost_of_one_method(student):
     h = student.step_for_target(3.0, 2.0, 1e-4)
-    check_scalar(h, math.sqrt(1e-4 / 3.0), rtol=1e-12, what="h")
+    check_scalar(h, math.sqrt(1e-4 / 3.0), rtol=1e-12, what="h", mistakes={
+        "C h^p = target gives h = (target / C)^(1/p)": (1e-4 / 3.0) ** 2,
+        "h = (target / C)^(1/p), not (C / target)^(1/p)": math.sqrt(3.0 / 1e-4)})
     # t_end / h = 173.2: the run needs 174 steps (173 would be a larger step, more error than asked)
-    n_steps, n_force = student.predicted_cost(h, 1.0, 4, 1)
-    assert (as_count(n_steps, "n_steps"), as_count(n_force, "n_force")) == (174, 697), \
-        f"(n_steps, n_force) = {(n_steps, n_force)}, expected (174, 697)"
+    n_steps, n_force = student.predicted_cost(math.sqrt(1e-4 / 3.0), 1.0, 4, 1)
+    got = (as_count(n_steps, "n_steps"), as_count(n_force, "n_force"))
+    hint = {(173, 693): "t_end / h = 173.2 rounded down: 173 steps are a larger step, take the ceiling",
+            (174, 696): "the start-up evaluation is missing: n_steps * evals_per_step + start_evals"}
+    assert got == (174, 697), f"(n_steps, n_force) = {(n_steps, n_force)}, expected (174, 697)" + (
+        f": likely mistake: {hint[got]}" if got in hint else "")
 
 
 @pytest.mark.points(2)

@@ -27,7 +27,7 @@ def lengths(x, pairs):
     return np.linalg.norm(x[pairs[:, 0]] - x[pairs[:, 1]], axis=1)
 
 
-@pytest.mark.points(2)
+@pytest.mark.points(1)
 def test_bend_springs_skip_one_particle(student):
     got = as_set(student.grid_springs(5, 6, "bend"), 30)
     assert len(got) == 5 * 4 + 6 * 3, f"{len(got)} bend springs, expected 38"

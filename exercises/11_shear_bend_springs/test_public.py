@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from mslab.grading.checks import as_numbers, check_array, check_shape
+from mslab.grading.checks import as_numbers, check_array, check_known, check_shape
 from mslab.scenes import grid_springs
 
 MODULE = "cloth_springs"
@@ -42,13 +42,26 @@ def test_shear_springs_are_both_diagonals_of_every_cell(student):
     assert got == as_set(grid_springs((4, 3), "shear"), 12), "not the two diagonals of each cell"
 
 
+@pytest.mark.points(1)
+def test_bend_springs_of_a_4_by_5_grid(student):
+    got = as_set(student.grid_springs(4, 5, "bend"), 20)
+    expected = as_set(grid_springs((4, 5), "bend"), 20)
+    diagonal = {tuple(sorted((i * 5 + j, (i + 2) * 5 + j + s))) for i in range(2) for j in range(5)
+                for s in (-2, 2) if 0 <= j + s < 5}
+    assert got == expected, f"{len(got)} bend springs, expected {len(expected)}" + (
+        ": likely mistake: bend springs skip one particle along rows and columns, not along diagonals"
+        if got - expected and got - expected <= diagonal else "")
+
+
 @pytest.mark.points(2)
 def test_the_shear_mode_is_free_for_structural_springs_only(student):
     n_rows, n_cols, h, theta = 4, 5, 0.2, np.radians(25.0)
     x = as_numbers(student.sheared(n_rows, n_cols, h, theta), what="x")
     check_shape(x, (20, 2), what="x")
     i, j = np.divmod(np.arange(20), n_cols)
-    check_array(x[:, 1], i * h * np.cos(theta), what="y")
+    check_known((x[:, 1],), (i * h * np.cos(theta),), whats=("y",), mistakes={
+        "cos and sin swapped: the rows rise by h cos(theta) and move sideways by h sin(theta)":
+            (i * h * np.sin(theta),)})
     flat = np.stack([j * h, i * h], axis=1)
     structural, shear = grid_springs((n_rows, n_cols), "structural"), grid_springs((n_rows, n_cols), "shear")
     check_array(lengths(x, structural), lengths(flat, structural), rtol=1e-12, atol=1e-14,

@@ -7,7 +7,10 @@ import pytest
 
 from mslab import ExplicitRK
 from mslab.derive import order
-from mslab.grading.checks import as_numbers, check_array
+from mslab.grading import mistakes
+from mslab.grading.checks import as_numbers, check_array, check_known
+from mslab.grading.problems import problem
+from mslab.state import State
 
 MODULE = "own_method"
 
@@ -24,7 +27,11 @@ def tableau(out):
 
 @pytest.mark.points(2)
 def test_residuals_of_kutta_and_of_a_second_order_method(student):
-    check_array(student.order3_conditions(*KUTTA3), np.zeros(4), atol=1e-14, what="Kutta's residuals")
+    A, b = KUTTA3
+    c = A.sum(axis=0)  # a common slip: the column sums
+    columns = np.array([b.sum() - 1, b @ c - 1 / 2, b @ c**2 - 1 / 3, b @ A @ c - 1 / 6])
+    check_known((student.order3_conditions(A, b),), (np.zeros(4),), whats=("Kutta's residuals",), atol=1e-14,
+                mistakes={"the nodes c = A 1 are the row sums of A, not its column sums": (columns,)})
     # Heun's second-order method (two stages): order 2 holds, the two order-3 conditions fail
     A = np.array([[0.0, 0.0], [1.0, 0.0]])
     b = np.array([0.5, 0.5])
@@ -37,7 +44,21 @@ def test_kutta_family_gives_kutta_and_heun3(student):
     for (c2, c3), (A, b) in (((0.5, 1.0), KUTTA3), ((1 / 3, 2 / 3), HEUN3)):
         got_A, got_b = tableau(student.kutta_family(c2, c3))
         check_array(got_A, A, atol=1e-13, what=f"A at c2 = {c2:.3g}, c3 = {c3:.3g}")
-        check_array(got_b, b, atol=1e-13, what=f"b at c2 = {c2:.3g}, c3 = {c3:.3g}")
+        check_known((got_b,), (b,), whats=(f"b at c2 = {c2:.3g}, c3 = {c3:.3g}",), atol=1e-13,
+                    mistakes={"b2 and b3 swapped: b2 goes with the node c2": (b[[0, 2, 1]],)})
+
+
+@pytest.mark.points(1)
+def test_rk3_step_with_kutta_matches_the_library(student):
+    # one step of Kutta's tableau on a moving, damped chain against the library's stepping of it
+    prob = problem("chain", n=4, dim=2, stiffness=50.0, gamma=0.3, sag=0.2)
+    v0 = np.random.default_rng(12).normal(size=prob.x0.shape) * (~prob.pinned)[:, None]
+    A, b = KUTTA3
+    ref = ExplicitRK(A, b, name="kutta").step(prob.system(), State(prob.x0.copy(), v0.copy()), 0.01)
+    out = student.rk3_step(prob.x0, v0, prob, 0.01, A, b)
+    assert isinstance(out, tuple | list) and len(out) == 2, "return (x_new, v_new)"
+    check_known(tuple(out), (ref.x, ref.v), mistakes.rk_stages(prob, prob.x0, v0, 0.01, A, b),
+                whats=("x_new", "v_new"))
 
 
 @pytest.mark.points(2)
