@@ -114,3 +114,17 @@ def test_step_map_of_one_oscillator_has_the_oscillator_matrix_spectrum(method):
     A, B = np.array([[-0.7]]), np.array([[-0.3]])
     whole = st.scenes.step_map(method, A, B, 1.0)
     assert st.same_spectrum(whole, st.amplification_matrix(method, np.sqrt(0.7), 0.3), atol=1e-12) < 1e-10
+
+
+def test_a_step_that_needs_more_than_rhs_keeps_the_per_eigenvalue_reading():
+    from mslab.integrators.families.two_step import Leapfrog
+
+    class MassReadingLeapfrog(Leapfrog):
+        def step(self, system, state, dt):
+            assert system.mass is not None        # the linear stand-in has no masses
+            return super().step(system, state, dt)
+
+    m = MassReadingLeapfrog("mass_reading_leapfrog", 2, mslab.get_method("velocity_verlet"))
+    scene = drag_particle()
+    # per eigenvalue: -gamma/m read as critically damped, leapfrog's real interval 0.4721
+    assert st.max_stable_dt(scene, m) == pytest.approx(-st.real_interval("leapfrog") * 0.02 / 0.5, rel=1e-6)

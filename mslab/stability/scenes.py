@@ -290,7 +290,9 @@ def max_stable_dt(scene: Scene, method: str | Integrator, contacts: str = "possi
     for the linearisation, coupled modes and pure drag included; about 100 dense eigenvalue
     problems of size 2-3 times the free dofs). Above that size each eigenvalue is read as its
     own oscillator (a real one as critically damped): exact only for modes that decouple with
-    complex eigenvalues; for pure drag (eigenvalues 0 and ``-gamma/m``) it is too small.
+    complex eigenvalues; for pure drag (eigenvalues 0 and ``-gamma/m``) it is too small. The
+    same reading is kept for a user's method whose ``step`` needs more of the system than
+    ``rhs`` and ``velocity_dependent``.
     A-stable implicit methods: inf. The fixed-point variant of implicit
     Euler converges only while ``dt * max|lam| < 1`` (its iteration map is ``dt J``), so
     for it the contraction limit :func:`contraction_dt` is returned.
@@ -327,7 +329,10 @@ def max_stable_dt(scene: Scene, method: str | Integrator, contacts: str = "possi
             K, D, inv_mass = linearise(scene, state.x, state.v, contacts=contacts)
             if D is not None and 0 < inv_mass.size <= WHOLE_SYSTEM_DOFS:
                 minv = inv_mass[:, None]
-                limit = whole_system_limit(m, minv * K.toarray(), minv * D.toarray(), limit)
+                try:
+                    limit = whole_system_limit(m, minv * K.toarray(), minv * D.toarray(), limit)
+                except (AttributeError, TypeError):  # a user's step that needs more than rhs: per eigenvalue
+                    pass
         per_system[key] = limit
     return per_system[key]
 
