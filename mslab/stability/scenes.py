@@ -4,6 +4,12 @@ The scene's forces are linearised (the effects' Jacobians, uncounted), the eigen
 ``lam`` of the first-order system found, and the largest ``dt`` with every ``dt * lam`` in
 the method's stability region returned. A-stable methods have no limit; the fixed-point
 solver of an implicit tableau converges only while ``dt rho(A) max|lam| < 1``.
+
+A method without a scalar ``R(z)`` (leapfrog, Verlet, symplectic Euler, splittings) on a
+*damped* scene is judged on its own one-step map of the whole linearised system (see
+:func:`whole_system_limit`): a single eigenvalue does not say which oscillator it belongs to
+(pure drag, eigenvalues 0 and ``-gamma/m``, is not the critically damped oscillator), and
+non-proportional damping couples the modes.
 """
 
 from __future__ import annotations
@@ -19,7 +25,7 @@ import scipy.sparse.linalg as spla
 from mslab.integrators.base import Integrator, get_method
 from mslab.scene import Scene
 from mslab.stability.functions import amplification
-from mslab.stability.limits import S_MIN, _ray_limit, oscillator_limit
+from mslab.stability.limits import S_MIN, TOL, _ray_limit, oscillator_limit
 from mslab.state import State
 from mslab.threads import single_threaded_blas
 
@@ -171,6 +177,91 @@ def _small_limit(rho: Callable[[np.ndarray], np.ndarray], smallest: float = 1e-1
     return float(lo)
 
 
+#: free dofs up to which a damped scene is judged on a method's whole-system map (cost below)
+WHOLE_SYSTEM_DOFS = 120
+
+
+class _LinearSystem:
+    """The linearised free dofs as a system for a method's own start/step: ``a = A x + B v``.
+
+    The state's arrays have shape (n_free, columns): each column is one state, so one step
+    maps a whole basis of perturbations at once. Counts nothing.
+    """
+
+    dissipative = False
+
+    def __init__(self, A: np.ndarray, B: np.ndarray | None):
+        self.A, self.B = A, B
+        self.velocity_dependent = B is not None
+
+    def rhs(self, x: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, float]:
+        a = self.A @ x
+        return (a if self.B is None else a + self.B @ v), 0.0
+
+    def acceleration(self, x: np.ndarray, v: np.ndarray) -> np.ndarray:
+        return self.rhs(x, v)[0]
+
+
+def step_map(method: str | Integrator, A: np.ndarray, B: np.ndarray | None, dt: float) -> np.ndarray:
+    """One-step map of a method on the linear system ``x'' = A x + B x'`` (whole system).
+
+    The method's own ``start`` and ``step`` run on :class:`_LinearSystem` from the zero
+    state with x, v and every memory entry shaped like x perturbed by the identity (all
+    ``k n`` perturbations as the columns of one state); the map is exactly linear, so the
+    result is the amplification matrix of the whole system, of size ``k n`` with
+    ``k = 2 + number of array memory entries`` (the state of :func:`measured_amplification_matrix`).
+    """
+    m = get_method(method)
+    n = A.shape[0]
+    system = _LinearSystem(A, B)
+    zero = m.start(system, State(np.zeros((n, 1)), np.zeros((n, 1)), (), 0.0), dt)
+    slots = [i for i, item in enumerate(zero.memory) if isinstance(item, np.ndarray) and item.shape == (n, 1)]
+    k = 2 + len(slots)
+    eye = np.eye(k * n)
+    blocks = [eye[j * n:(j + 1) * n] for j in range(k)]
+    memory = list(zero.memory)
+    for j, i in enumerate(slots):
+        memory[i] = blocks[2 + j]
+    new = m.step(system, State(blocks[0], blocks[1], tuple(memory), 0.0), dt)
+    return np.vstack([new.x, new.v] + [new.memory[i] for i in slots])
+
+
+@single_threaded_blas
+def whole_system_limit(m: Integrator, A: np.ndarray, B: np.ndarray | None, guess: float) -> float:
+    """Largest dt with the spectral radius of :func:`step_map` ``<= 1 + TOL`` (first crossing).
+
+    From ``guess`` (the per-eigenvalue estimate) steps of 2 % up or down bracket the first
+    crossing, bisection narrows it to ``1e-10`` relative, and 16 steps geometrically spaced
+    from ``S_MIN / max|lam|`` to the bracket must be stable too (else the full scan of
+    :func:`mslab.stability.limits._ray_limit` decides). Cost: about 60-100 eigenvalue problems of
+    size ``k n`` (``k = 2`` or 3), each ``O((k n)^3)``: milliseconds for the lessons' ropes,
+    which is why only scenes up to :data:`WHOLE_SYSTEM_DOFS` free dofs are judged this way.
+    """
+    def stable(dt: float) -> bool:
+        return bool(np.max(np.abs(np.linalg.eigvals(step_map(m, A, B, dt)))) <= 1.0 + TOL)
+
+    top = float(np.max(np.abs(np.linalg.eigvals(np.block([[np.zeros_like(A), np.eye(A.shape[0])],
+                                                          [A, np.zeros_like(A) if B is None else B]])))))
+    lo = hi = guess if 0 < guess < np.inf else 1.0 / top
+    if stable(lo):
+        while stable(hi) and hi * top < 1e6:
+            lo, hi = hi, hi * 1.02
+        if hi * top >= 1e6:
+            return np.inf
+    else:
+        while not stable(lo):
+            if lo * top < S_MIN:
+                return 0.0
+            hi, lo = lo, lo / 1.02
+    while hi - lo > 1e-10 * hi:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+    below = np.geomspace(S_MIN / top, lo, 16)
+    if all(stable(float(dt)) for dt in below):
+        return float(lo)
+    return _ray_limit(lambda s: np.array([0.0 if stable(si / top) else 2.0 for si in s])) / top
+
+
 #: per System: eigenvalues and limits by (contacts, state bytes[, method]); scenes are not mutated
 _CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
@@ -192,7 +283,17 @@ def max_stable_dt(scene: Scene, method: str | Integrator, contacts: str = "possi
 
     Undamped scenes: ``oscillator_limit(method) / w_max``. Damped scenes: the largest
     dt with every ``dt * lam`` (eigenvalues of the first-order Jacobian) in the method's
-    stability region. A-stable implicit methods: inf. The fixed-point variant of implicit
+    stability region (Runge-Kutta methods, exact: ``R(dt J)`` has the eigenvalues
+    ``R(dt lam)``). A method without a scalar ``R`` on a damped scene of at most
+    :data:`WHOLE_SYSTEM_DOFS` free dofs: the largest dt at which its one-step map of the
+    whole linearised system has spectral radius ``<= 1`` (:func:`whole_system_limit`, exact
+    for the linearisation, coupled modes and pure drag included; about 100 dense eigenvalue
+    problems of size 2-3 times the free dofs). Above that size each eigenvalue is read as its
+    own oscillator (a real one as critically damped): exact only for modes that decouple with
+    complex eigenvalues; for pure drag (eigenvalues 0 and ``-gamma/m``) it is too small. The
+    same reading is kept for a user's method whose ``step`` needs more of the system than
+    ``rhs`` and ``velocity_dependent``.
+    A-stable implicit methods: inf. The fixed-point variant of implicit
     Euler converges only while ``dt * max|lam| < 1`` (its iteration map is ``dt J``), so
     for it the contraction limit :func:`contraction_dt` is returned.
 
@@ -223,7 +324,16 @@ def max_stable_dt(scene: Scene, method: str | Integrator, contacts: str = "possi
     state = scene.state0 if state is None else state
     key = (contacts, state.x.tobytes(), state.v.tobytes(), m)
     if key not in per_system:
-        per_system[key] = _dt_limit(m, lam)
+        limit = _dt_limit(m, lam)
+        if m.stability_function(np.zeros(1)) is None and np.any(np.abs(lam.real) > 0):
+            K, D, inv_mass = linearise(scene, state.x, state.v, contacts=contacts)
+            if D is not None and 0 < inv_mass.size <= WHOLE_SYSTEM_DOFS:
+                minv = inv_mass[:, None]
+                try:
+                    limit = whole_system_limit(m, minv * K.toarray(), minv * D.toarray(), limit)
+                except (AttributeError, TypeError):  # a user's step that needs more than rhs: per eigenvalue
+                    pass
+        per_system[key] = limit
     return per_system[key]
 
 
