@@ -19,6 +19,7 @@ import scipy.sparse.linalg as spla
 from mslab.integrators.base import Integrator, get_method
 from mslab.scene import Scene
 from mslab.stability.functions import amplification
+from mslab.stability.gaps import boundary
 from mslab.stability.limits import S_MIN, _ray_limit, oscillator_limit
 from mslab.state import State
 from mslab.threads import single_threaded_blas
@@ -142,7 +143,7 @@ def _dt_limit(m: Integrator, lam: np.ndarray) -> float:
         z = s[:, None] * unit[None, :]
         return np.max(np.abs(amplification(m, z)), axis=1)
 
-    limit = _ray_limit(rho)
+    limit = _ray_limit(rho, functions=boundary(m, np.unique(unit)))
     if limit == 0.0:  # unstable at S_MIN, yet damping may leave a small stable step
         limit = _small_limit(rho)
     return limit / top
