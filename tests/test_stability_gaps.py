@@ -20,7 +20,7 @@ ZETA = np.sin(0.04)
 
 
 def damped_oscillator():
-    """Unit mass on a unit spring (w0 = 1) with drag 2 zeta: eigenvalues -zeta +- i sqrt(1 - zeta^2), |lam| = 1."""
+    """Unit mass, unit spring (w0 = 1), drag 2 zeta: eigenvalues -zeta +- i sqrt(1 - zeta^2), |lam| = 1."""
     b = mslab.SceneBuilder(1)
     anchor = b.add_particle([-1.0], pinned=True)
     p = b.add_particle([0.0], mass=1.0)
