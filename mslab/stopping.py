@@ -45,6 +45,15 @@ KEEP = 0.5
 PLATEAU = 4.0
 #: deviations below this fraction of the scale are round-off: they start no rise
 FLOOR = 1e-10
+#: an impact, where dt exceeds the stable dt: out of calm (not two ``JUMP``-fold gains in a row into
+#: the previous check), the ledger gained ``JUMP`` times or more the smaller of its two previous
+#: deviations (its base: a check may fall inside a contact), to a new high above ``JUMP_LEVEL``
+#: times the energy scale, and kept that gain (within ``PLATEAU`` times) at the next check. A
+#: penalty contact stepped beyond its limit throws the particle off within one or two steps, too
+#: brief for a rise over ``RISE_CHECKS`` checks; an instability already or still growing is left
+#: to the rise rules.
+JUMP = 10.0
+JUMP_LEVEL = 0.1
 
 
 #: ``predict(scene, integrator) -> stable dt or None`` (installed from above; None: no prediction)
@@ -138,7 +147,15 @@ class LedgerCheck:
       unstable mode's energy grows as ``|R|^(2n)``: from the tiny error of the first steps
       that looks linear at first (forward Euler: ``(1 + h^2 w^2)^n - 1 ~ n h^2 w^2``), then
       outgrows any drift (forward Euler in a wind, its energy x 7.6e3 after 29000 steps,
-      under the fixed bound), while a drift (free fall) never qualifies.
+      under the fixed bound), while a drift (free fall) never qualifies; or
+    * an **impact**: out of calm, the ledger jumped ``JUMP`` times or more between two checks
+      to a new high above ``JUMP_LEVEL`` times the energy scale and kept it at the next check
+      (:data:`JUMP`). A penalty contact stepped just beyond its limit (1.1 x, lesson 08)
+      throws the particle off within a step or two, its energy x 12: too brief for a rise, and
+      a single contact (no successive ones to compare). Its gain per contact alone tells
+      nothing: within the limit a contact's gain is the method's error, up to x 9 at 0.99 x
+      (kinked by the contact switching on mid-step), unbounded as dt nears the limit; beyond
+      it the contact's mode is unstable, so the gain is the instability's.
 
     **Within the stable dt** the ledger gives no verdict: every mode's step matrix then has
     its eigenvalues in the unit disc, so its amplitude stays bounded — but by the conditioning
@@ -242,6 +259,10 @@ class _Growth:
     def __init__(self):
         self._rise = (0, 0.0, 0.0, 0)  # (first step, first |E - E0|, peak |E - E0|, checks)
         self._risen: tuple | None = None  # (step, E - E0, rise's first step and |E - E0|, checks since)
+        #: (previous check's step, |E - E0| there and at the two checks before it): none before the
+        #: first checks (a jump is measured from checks, not from the start)
+        self._last = (0, math.inf, math.inf, math.inf)
+        self._jump: tuple | None = None  # (step, E - E0, previous check's step, base): a jump to be kept
 
     def update(self, step: int, change: float, scale: float, who: str,
                beyond_limit: Callable[[], bool | None]) -> str | None:
@@ -275,6 +296,13 @@ class _Growth:
                       f"{who} energy scale at step {step}, {change / (low * step / first):.3g} x more than "
                       f"a linear drift: the geometric growth of {{why}}, stopped before its amplitude "
                       f"saturated or the positions blew up")
+        jump = self._impact(step, change, size, scale)
+        if reason is None and jump is not None:
+            at, level, before, base = jump
+            reason = (f"gained {level / scale:.3g} x {who} energy scale between steps {before} and {at} "
+                      f"({level / base:.3g} x its deviation before) and kept it up to step {step} (now "
+                      f"{growth:.3g} x): an impact that gained energy within a few steps through {{why}} "
+                      f"(e.g. a penalty contact stepped beyond its stable dt, throwing the particle off)")
         if reason is None:
             return None
         beyond = beyond_limit()  # predicted once, at the first rise that would stop the run
@@ -282,3 +310,15 @@ class _Growth:
             return None  # a stable mode's transient near the limit, or a drift: the method's error
         return reason.format(why="a mode unstable at this dt" if beyond else
                              "an instability (no stable dt is known here)")
+
+    def _impact(self, step: int, change: float, size: float, scale: float) -> tuple | None:
+        """Record a check for the impact rule; return the jump the ledger kept up to ``step``, or None."""
+        before, last, earlier, earliest = self._last
+        base = max(min(last, earlier), FLOOR * scale)  # the smaller: a check may fall inside a contact
+        floor = FLOOR * scale
+        growing = earlier >= JUMP * max(earliest, floor) and last >= JUMP * max(earlier, floor)
+        pending, self._last = self._jump, (step, size, last, earlier)
+        kept = pending is not None and pending[1] / PLATEAU <= change <= PLATEAU * pending[1]
+        jumped = not growing and change > max(JUMP_LEVEL * scale, last) and change >= JUMP * base
+        self._jump = (step, change, before, base) if jumped else None
+        return pending if kept else None
