@@ -48,7 +48,8 @@ FLOOR = 1e-10
 #: an impact, where dt exceeds the stable dt: out of calm (not two ``JUMP``-fold gains in a row into
 #: the previous check), the ledger gained ``JUMP`` times or more the smaller of its two previous
 #: deviations (its base: a check may fall inside a contact), to a new high above ``JUMP_LEVEL``
-#: times the energy scale, and kept that gain (within ``PLATEAU`` times) at the next check. A
+#: times the energy scale, and kept that gain (within a factor ``1 / KEEP``) at the next check
+#: (an instability growing smoothly 10-fold over two intervals grows more than that over one). A
 #: penalty contact stepped beyond its limit throws the particle off within one or two steps, too
 #: brief for a rise over ``RISE_CHECKS`` checks; an instability already or still growing is left
 #: to the rise rules.
@@ -318,7 +319,7 @@ class _Growth:
         floor = FLOOR * scale
         growing = earlier >= JUMP * max(earliest, floor) and last >= JUMP * max(earlier, floor)
         pending, self._last = self._jump, (step, size, last, earlier)
-        kept = pending is not None and pending[1] / PLATEAU <= change <= PLATEAU * pending[1]
+        kept = pending is not None and KEEP * pending[1] <= change <= pending[1] / KEEP
         jumped = not growing and change > max(JUMP_LEVEL * scale, last) and change >= JUMP * base
         self._jump = (step, change, before, base) if jumped else None
         return pending if kept else None
