@@ -272,3 +272,45 @@ def test_no_false_alarm_on_a_contact_below_its_limit(method):
         return  # forward Euler, heun, midpoint, rk6: no stable dt on an undamped contact
     for fraction, height in itertools.product((0.9, 0.95, 0.99), (0.1, 0.107, 0.113, 0.12)):
         assert _drop_run(method, fraction, height, backend="numba").complete
+
+
+def stretched_cross(velocity):
+    """A unit mass held by four springs (k = 100, rest length 1) to anchors 2 m away on the axes, thrown.
+
+    At the start the springs pull with tension k (2 - 1): sideways stiffness k / 2 each. Thrown far,
+    a spring stretched to length L stiffens sideways to k (1 - 1 / L): the states the run reaches are
+    stiffer than its start, whose linearisation sets the predicted stable dt."""
+    b = mslab.SceneBuilder(2)
+    centre = b.add_particle([0.0, 0.0], mass=1.0, velocity=velocity)
+    for anchor in ([2.0, 0.0], [-2.0, 0.0], [0.0, 2.0], [0.0, -2.0]):
+        b.add_spring(centre, b.add_particle(anchor, pinned=True), 100.0, rest_length=1.0)
+    return b.build()
+
+
+def test_a_run_within_the_start_limit_but_beyond_that_of_the_states_it_reaches_is_stopped():
+    """yoshida6 at 0.9 x the stable dt predicted at the start: the thrown particle reaches stretched states
+    whose linearisation puts dt beyond their limit (1.04-1.14 x); its energy grew a thousand-fold and it
+    flew 35 times farther than the anchors, under the position bound. The ledger gave no verdict within
+    the start's limit and the run completed; linearised again at the state of the rise, it stops."""
+    sc = stretched_cross([30.0, 5.0])
+    dt = 0.9 * predicted_stable_dt(sc, mslab.get_method("yoshida6"))
+    unchecked = _run(sc, "yoshida6", dt, 20000, energy_blowup=np.inf, check_stability=False)
+    gain = (unchecked.energy.total - unchecked.energy.total[0]) / initial_energy_scale(sc)
+    assert unchecked.complete and gain.max() > 100 and np.abs(unchecked.x).max() > 20
+    reached = [dataclasses.replace(sc, state0=mslab.State(unchecked.x[i], unchecked.v[i]))
+               for i in (50, 100, 150)]
+    assert max(dt / st.max_stable_dt(s, "yoshida6") for s in reached) > 1.02
+    with pytest.raises(mslab.InstabilityError, match="in the state the run reached") as info:
+        _run(sc, "yoshida6", dt, 20000)
+    assert info.value.step < 20000
+
+
+def test_a_thrown_run_within_the_limit_of_every_state_it_reaches_completes():
+    """Symplectic Euler at 0.9 x on the cross thrown more gently: its energy swings 2-fold (the method's error
+    near the limit) and every state it reaches is within its own limit: linearised again, still no verdict."""
+    sc = stretched_cross([10.0, 2.0])
+    dt = 0.9 * predicted_stable_dt(sc, mslab.get_method("symplectic_euler"))
+    tr = _run(sc, "symplectic_euler", dt, 20000)
+    assert tr.complete
+    states = [dataclasses.replace(sc, state0=mslab.State(tr.x[i], tr.v[i])) for i in range(0, tr.t.size, 10)]
+    assert max(dt / st.max_stable_dt(s, "symplectic_euler") for s in states) < 1.0
