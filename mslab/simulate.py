@@ -59,11 +59,12 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
         The ledger check (:class:`mslab.stopping.LedgerCheck`): where dt exceeds the stable dt
         (predicted per mode), a ledger ``K + U + D - W_ext`` above this many times the scene's
         energy scale (:func:`initial_energy_scale`, from the initial state), or one that *grew*
-        past that scale geometrically — an instability, saturated with bounded positions or
-        not — stops the run at the checked step where it is found (the error's step and time,
-        ``stats`` and the kept samples all describe that stopping point). Within the stable dt
-        the ledger gives no verdict (a stable mode's energy swings far near the limit; a drive
-        makes it drift). ``inf`` turns the check off.
+        past that scale geometrically or jumped there in an impact — an instability, saturated
+        with bounded positions or not — stops the run at the checked step where it is found (the
+        error's step and time, ``stats`` and the kept samples all describe that stopping point).
+        Within the stable dt the ledger gives no verdict (a stable mode's energy swings far near
+        the limit; a drive makes it drift) unless the scene, linearised again at the run's
+        state, is beyond its limit there. ``inf`` turns the check off.
     stable_dt : float, optional
         Predicted stable step, quoted in the InstabilityError message; the ledger check reads
         a run with a larger dt as beyond the stable dt (default: the prediction).

@@ -17,6 +17,7 @@ stops at the same step with the same message:
 
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 from collections.abc import Callable
@@ -45,7 +46,22 @@ KEEP = 0.5
 PLATEAU = 4.0
 #: deviations below this fraction of the scale are round-off: they start no rise
 FLOOR = 1e-10
+#: an impact, where dt exceeds the stable dt: out of calm (not two ``JUMP``-fold gains in a row into
+#: the previous check), the ledger gained ``JUMP`` times or more the smaller of its two previous
+#: deviations (its base: a check may fall inside a contact), to a new high above ``JUMP_LEVEL``
+#: times the energy scale, and kept that gain (within a factor ``1 / KEEP``) at the next check
+#: (an instability growing smoothly 10-fold over two intervals grows more than that over one). A
+#: penalty contact stepped beyond its limit throws the particle off within one or two steps, too
+#: brief for a rise over ``RISE_CHECKS`` checks; an instability already or still growing is left
+#: to the rise rules.
+JUMP = 10.0
+JUMP_LEVEL = 0.1
 
+
+#: linearisations at a run's state (where the one at its start calls dt stable) a run may make,
+#: each at a state ``FARTHER`` times farther from the start (largest |x - x0|) than the one before
+RELINEARISE = 8
+FARTHER = 1.25
 
 #: ``predict(scene, integrator) -> stable dt or None`` (installed from above; None: no prediction)
 _predict: Callable[[Scene, Integrator], float | None] | None = None
@@ -97,20 +113,42 @@ def check_stability(scene: Scene, integrator: Integrator, dt: float, stable_dt: 
 
 
 def beyond_limit(scene: Scene, integrator: Integrator, dt: float,
-                 stable_dt: float | None) -> Callable[[], bool | None]:
-    """Return ``beyond()``: whether dt exceeds the stable dt, so that a mode of the linearised scene grows.
+                 stable_dt: float | None) -> Callable[..., bool | str | None]:
+    """Return ``beyond(x=None, v=None)``: whether dt exceeds the stable dt, so that a mode grows.
 
     ``stable_dt`` (the pre-check's, or the caller's) when given, else the prediction (inf for an
     A-stable implicit method), made on the first call only: a run whose ledger never rises
     never pays for it. None: unknown (no predictor installed, a scene too large to predict).
-    """
-    known: list[bool | None] = []
 
-    def beyond() -> bool | None:
+    Within it, given the run's state ``x, v``, the scene is linearised again there when the
+    state lies :data:`FARTHER` times farther from the start than any linearised before (at most
+    :data:`RELINEARISE` times a run): a run that strays from its initial state into stiffer
+    ones (springs stretched across their anchors stiffen sideways by their tension) can exceed
+    the stable dt of the states it reaches while staying within that of its start. Beyond it
+    there only, ``beyond`` returns what grows (a str, true) instead of True.
+    """
+    import dataclasses
+
+    from mslab.state import State
+
+    known: list[bool | None] = []
+    again, farthest = [RELINEARISE], [0.0]
+
+    def beyond(x: np.ndarray | None = None, v: np.ndarray | None = None) -> bool | str | None:
         if not known:
             limit = predicted(scene, integrator) if stable_dt is None else stable_dt
             known.append(None if limit is None else dt > limit)
-        return known[0]
+        if known[0] is not False or x is None or v is None or again[0] == 0 or _predict is None:
+            return known[0]
+        reach = float(np.max(np.abs(x - scene.state0.x)))
+        if not reach > FARTHER * farthest[0]:
+            return False  # no farther from the start than a state linearised already
+        again[0], farthest[0] = again[0] - 1, reach
+        there = predicted(dataclasses.replace(scene, state0=State(np.array(x), np.array(v))), integrator)
+        if there is None or not dt > there:
+            return False
+        return (f"a mode unstable at this dt in the state the run reached (linearised there: stable dt "
+                f"{there:.4g}, at the start {predicted(scene, integrator):.4g})")
 
     return beyond
 
@@ -138,7 +176,15 @@ class LedgerCheck:
       unstable mode's energy grows as ``|R|^(2n)``: from the tiny error of the first steps
       that looks linear at first (forward Euler: ``(1 + h^2 w^2)^n - 1 ~ n h^2 w^2``), then
       outgrows any drift (forward Euler in a wind, its energy x 7.6e3 after 29000 steps,
-      under the fixed bound), while a drift (free fall) never qualifies.
+      under the fixed bound), while a drift (free fall) never qualifies; or
+    * an **impact**: out of calm, the ledger jumped ``JUMP`` times or more between two checks
+      to a new high above ``JUMP_LEVEL`` times the energy scale and kept it at the next check
+      (:data:`JUMP`). A penalty contact stepped just beyond its limit (1.1 x, lesson 08)
+      throws the particle off within a step or two, its energy x 12: too brief for a rise, and
+      a single contact (no successive ones to compare). Its gain per contact alone tells
+      nothing: within the limit a contact's gain is the method's error, up to x 9 at 0.99 x
+      (kinked by the contact switching on mid-step), unbounded as dt nears the limit; beyond
+      it the contact's mode is unstable, so the gain is the instability's.
 
     **Within the stable dt** the ledger gives no verdict: every mode's step matrix then has
     its eigenvalues in the unit disc, so its amplitude stays bounded — but by the conditioning
@@ -175,7 +221,7 @@ class LedgerCheck:
 
         self.scale, self.energy_blowup, self.end = scale, energy_blowup, end
         self.on = not math.isinf(energy_blowup)
-        self._beyond = beyond if beyond is not None else lambda: None
+        self._beyond = beyond if beyond is not None else lambda x=None, v=None: None
         #: steps between two checks (after the doubling ones)
         self.every = max(1, CHECK_EVALS // max(1, n_stages))
         self._groups = energy_groups(scene) if scene is not None and self.on else None
@@ -210,14 +256,15 @@ class LedgerCheck:
         """Record ``E(step)`` (groups: their ledgers at ``x, v``); return why the run is unstable, or None."""
         self._k_max = max(self._k_max, kinetic)
         fallback = self.scale if self.scale > 0 else self._k_max
+        beyond = functools.partial(self._beyond, x, v)  # linearised at this state, where within at the start
         if self._groups is None or x is None:
-            return self._watch[0].update(step, total - self._e0, fallback, "the scene's", self._beyond)
+            return self._watch[0].update(step, total - self._e0, fallback, "the scene's", beyond)
         changes = self._ledgers(self._system, self._groups, x, v, self._x0) - self._g0
         for g, (watch, change) in enumerate(zip(self._watch, changes, strict=True)):
             scale = self._scales[g] if self._scales[g] > 0 else fallback
             who = (f"the energy scale of particles {np.flatnonzero(self._groups == g)[:5].tolist()} (a group "
                    f"no effect couples to the rest: no energy flows in or out); its")
-            reason = watch.update(step, float(change), scale, who, self._beyond)
+            reason = watch.update(step, float(change), scale, who, beyond)
             if reason is not None:
                 return reason
         return None
@@ -242,9 +289,13 @@ class _Growth:
     def __init__(self):
         self._rise = (0, 0.0, 0.0, 0)  # (first step, first |E - E0|, peak |E - E0|, checks)
         self._risen: tuple | None = None  # (step, E - E0, rise's first step and |E - E0|, checks since)
+        #: (previous check's step, |E - E0| there and at the two checks before it): none before the
+        #: first checks (a jump is measured from checks, not from the start)
+        self._last = (0, math.inf, math.inf, math.inf)
+        self._jump: tuple | None = None  # (step, E - E0, previous check's step, base): a jump to be kept
 
     def update(self, step: int, change: float, scale: float, who: str,
-               beyond_limit: Callable[[], bool | None]) -> str | None:
+               beyond_limit: Callable[[], bool | str | None]) -> str | None:
         """Record the ledger's change ``E - E(0)`` at ``step``; return why the run is unstable, or None."""
         if not scale > 0:
             return None
@@ -275,10 +326,31 @@ class _Growth:
                       f"{who} energy scale at step {step}, {change / (low * step / first):.3g} x more than "
                       f"a linear drift: the geometric growth of {{why}}, stopped before its amplitude "
                       f"saturated or the positions blew up")
+        jump = self._impact(step, change, size, scale)
+        if reason is None and jump is not None:
+            at, level, before, base = jump
+            reason = (f"gained {level / scale:.3g} x {who} energy scale between steps {before} and {at} "
+                      f"({level / base:.3g} x its deviation before) and kept it up to step {step} (now "
+                      f"{growth:.3g} x): an impact that gained energy within a few steps through {{why}} "
+                      f"(e.g. a penalty contact stepped beyond its stable dt, throwing the particle off)")
         if reason is None:
             return None
-        beyond = beyond_limit()  # predicted once, at the first rise that would stop the run
+        beyond = beyond_limit()  # predicted at the first rise that would stop the run (again at its state)
         if beyond is False:
             return None  # a stable mode's transient near the limit, or a drift: the method's error
+        if isinstance(beyond, str):
+            return reason.format(why=beyond)
         return reason.format(why="a mode unstable at this dt" if beyond else
                              "an instability (no stable dt is known here)")
+
+    def _impact(self, step: int, change: float, size: float, scale: float) -> tuple | None:
+        """Record a check for the impact rule; return the jump the ledger kept up to ``step``, or None."""
+        before, last, earlier, earliest = self._last
+        base = max(min(last, earlier), FLOOR * scale)  # the smaller: a check may fall inside a contact
+        floor = FLOOR * scale
+        growing = earlier >= JUMP * max(earliest, floor) and last >= JUMP * max(earlier, floor)
+        pending, self._last = self._jump, (step, size, last, earlier)
+        kept = pending is not None and KEEP * pending[1] <= change <= pending[1] / KEEP
+        jumped = not growing and change > max(JUMP_LEVEL * scale, last) and change >= JUMP * base
+        self._jump = (step, change, before, base) if jumped else None
+        return pending if kept else None

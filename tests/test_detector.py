@@ -216,3 +216,101 @@ def test_energy_groups_are_the_connected_components():
             assert len(set(groups[labels == k])) == 1
         if count <= MAX_GROUPS:
             assert len(set(groups)) == count
+
+
+def drop(height, k=1e5, mass=1.0):
+    """Lesson 08's drop: one particle at ``height`` above a penalty floor y >= 0, under gravity."""
+    b = mslab.SceneBuilder(2)
+    b.add_particle([0.0, height], mass=mass)
+    b.add_gravity([0.0, -9.81])
+    b.add_plane([0.0, 1.0], 0.0, stiffness=k)
+    return b.build()
+
+
+def _drop_run(method, fraction, height, **kw):
+    """One second of the drop at ``fraction`` of the predicted stable dt (a whole number of steps)."""
+    sc = drop(height)
+    n = int(round(1.0 / (fraction * predicted_stable_dt(sc, mslab.get_method(method)))))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", mslab.StabilityWarning)
+        return mslab.simulate(sc, method, dt=1.0 / n, t_end=1.0, **kw)
+
+
+def test_the_contact_catapult_just_beyond_its_limit_is_stopped():
+    """Lesson 08's miss: at 1.1 x the contact's limit symplectic Euler throws the particle dropped from
+    0.1 m to 1.26 m (energy x 12, where the exact motion rises back to 0.1 m) within one contact of a
+    step or two; the ledger check's rise rules never fired and the run completed. The impact rule
+    (a jump out of calm, kept) stops it after the first contact."""
+    unchecked = _drop_run("symplectic_euler", 1.1, 0.1, energy_blowup=np.inf)
+    assert unchecked.complete and unchecked.x[:, 0, 1].max() > 1.0 and np.all(np.isfinite(unchecked.x))
+    with pytest.raises(mslab.InstabilityError, match="an impact .* unstable at this dt") as info:
+        _drop_run("symplectic_euler", 1.1, 0.1)
+    assert np.sqrt(2 * 0.1 / 9.81) < info.value.t < 0.5  # after the first contact, long before the end
+
+
+@pytest.mark.parametrize("method", ["symplectic_euler", "verlet", "rk4"])
+def test_every_catapult_above_a_metre_beyond_the_limit_is_stopped(method):
+    """Eleven start heights 0.100-0.120 m at 1.1 x the limit: every run that throws the particle above
+    1 m (ten times its start, unchecked) is stopped (by the impact rule, or by the rise rule where the
+    jump exceeds the whole energy scale)."""
+    thrown = 0
+    for height in np.linspace(0.1, 0.12, 11):
+        unchecked = _drop_run(method, 1.1, height, energy_blowup=np.inf)
+        if unchecked.x[:, 0, 1].max() > 1.0:
+            thrown += 1
+            with pytest.raises(mslab.InstabilityError, match="energy ledger .* unstable at this dt"):
+                _drop_run(method, 1.1, height)
+    assert thrown >= 2
+
+
+@pytest.mark.parametrize("method", EXPLICIT)
+def test_no_false_alarm_on_a_contact_below_its_limit(method):
+    """Every explicit method with a stable dt: the drop at 0.9-0.99 x the contact's limit from four
+    heights completes (the contact may gain energy there, up to x 9 for symplectic Euler at 0.99 x:
+    the method's error near its limit, not an instability)."""
+    if not predicted_stable_dt(drop(0.1), mslab.get_method(method)):
+        return  # forward Euler, heun, midpoint, rk6: no stable dt on an undamped contact
+    for fraction, height in itertools.product((0.9, 0.95, 0.99), (0.1, 0.107, 0.113, 0.12)):
+        assert _drop_run(method, fraction, height, backend="numba").complete
+
+
+def stretched_cross(velocity):
+    """A unit mass held by four springs (k = 100, rest length 1) to anchors 2 m away on the axes, thrown.
+
+    At the start the springs pull with tension k (2 - 1): sideways stiffness k / 2 each. Thrown far,
+    a spring stretched to length L stiffens sideways to k (1 - 1 / L): the states the run reaches are
+    stiffer than its start, whose linearisation sets the predicted stable dt."""
+    b = mslab.SceneBuilder(2)
+    centre = b.add_particle([0.0, 0.0], mass=1.0, velocity=velocity)
+    for anchor in ([2.0, 0.0], [-2.0, 0.0], [0.0, 2.0], [0.0, -2.0]):
+        b.add_spring(centre, b.add_particle(anchor, pinned=True), 100.0, rest_length=1.0)
+    return b.build()
+
+
+def test_a_run_within_the_start_limit_but_beyond_that_of_the_states_it_reaches_is_stopped():
+    """yoshida6 at 0.9 x the stable dt predicted at the start: the thrown particle reaches stretched states
+    whose linearisation puts dt beyond their limit (1.04-1.14 x); its energy grew a thousand-fold and it
+    flew 35 times farther than the anchors, under the position bound. The ledger gave no verdict within
+    the start's limit and the run completed; linearised again at the state of the rise, it stops."""
+    sc = stretched_cross([30.0, 5.0])
+    dt = 0.9 * predicted_stable_dt(sc, mslab.get_method("yoshida6"))
+    unchecked = _run(sc, "yoshida6", dt, 20000, energy_blowup=np.inf, check_stability=False)
+    gain = (unchecked.energy.total - unchecked.energy.total[0]) / initial_energy_scale(sc)
+    assert unchecked.complete and gain.max() > 100 and np.abs(unchecked.x).max() > 20
+    reached = [dataclasses.replace(sc, state0=mslab.State(unchecked.x[i], unchecked.v[i]))
+               for i in (50, 100, 150)]
+    assert max(dt / st.max_stable_dt(s, "yoshida6") for s in reached) > 1.02
+    with pytest.raises(mslab.InstabilityError, match="in the state the run reached") as info:
+        _run(sc, "yoshida6", dt, 20000)
+    assert info.value.step < 20000
+
+
+def test_a_thrown_run_within_the_limit_of_every_state_it_reaches_completes():
+    """Symplectic Euler at 0.9 x on the cross thrown more gently: its energy swings 2-fold (the method's error
+    near the limit) and every state it reaches is within its own limit: linearised again, still no verdict."""
+    sc = stretched_cross([10.0, 2.0])
+    dt = 0.9 * predicted_stable_dt(sc, mslab.get_method("symplectic_euler"))
+    tr = _run(sc, "symplectic_euler", dt, 20000)
+    assert tr.complete
+    states = [dataclasses.replace(sc, state0=mslab.State(tr.x[i], tr.v[i])) for i in range(0, tr.t.size, 10)]
+    assert max(dt / st.max_stable_dt(s, "symplectic_euler") for s in states) < 1.0

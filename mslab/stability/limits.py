@@ -31,6 +31,7 @@ from mslab.integrators.base import Integrator, get_method
 from mslab.integrators.families.polynomials import exact_polynomials
 from mslab.stability.exact import imag_limit_of, real_interval_of
 from mslab.stability.functions import amplification, amplification_matrix, spectral_radius, tableau
+from mslab.stability.gaps import boundary, first_unstable
 
 #: ``rho <= 1 + TOL`` counts as stable in the scans (round-off of near-defective eigenvalues).
 TOL = 1e-10
@@ -41,8 +42,14 @@ S_MAX = 1e6
 _GRID = np.geomspace(S_MIN, S_MAX, 1201)
 
 
-def _ray_limit(rho: Callable[[np.ndarray], np.ndarray], chunk: int = 100) -> float:
-    """Largest s with ``rho(s') <= 1 + TOL`` for all s' in [S_MIN, s] (0 / inf at the ends)."""
+def _ray_limit(rho: Callable[[np.ndarray], np.ndarray], chunk: int = 100,
+               functions: Callable[[np.ndarray], np.ndarray] | None = None) -> float:
+    """Largest s with ``rho(s') <= 1 + TOL`` for all s' in [S_MIN, s] (0 / inf at the ends).
+
+    ``functions``: the ray's boundary functions (:func:`mslab.stability.gaps.boundary`); with
+    them, an unstable gap narrower than the grid below its first unstable point is found
+    (:func:`mslab.stability.gaps.first_unstable`) and the first edge is that gap's.
+    """
     first = None
     for start in range(0, _GRID.size, chunk):
         bad = np.flatnonzero(~(rho(_GRID[start:start + chunk]) <= 1.0 + TOL))
@@ -54,6 +61,9 @@ def _ray_limit(rho: Callable[[np.ndarray], np.ndarray], chunk: int = 100) -> flo
     if first == 0:
         return 0.0
     lo, hi = _GRID[first - 1], _GRID[first]
+    gap = None if functions is None else first_unstable(rho, functions, float(hi), S_MIN, TOL)
+    if gap is not None:
+        lo, hi = gap
     for _ in range(80):
         mid = 0.5 * (lo + hi)
         if rho(np.array([mid]))[0] <= 1.0 + TOL:
@@ -85,7 +95,7 @@ def _real_interval(m: Integrator) -> float:
 
 def scanned_real_interval(m: Integrator) -> float:
     """Return the real interval's left end scanned on ``|R(-s)|`` (splittings, two-step forms)."""
-    return -_ray_limit(lambda s: np.abs(amplification(m, -s)))
+    return -_ray_limit(lambda s: np.abs(amplification(m, -s)), functions=boundary(m, np.array([-1.0])))
 
 
 @lru_cache(maxsize=256)
@@ -93,14 +103,16 @@ def _imag_limit(m: Integrator) -> float:
     if tableau(m) is not None:  # exactly, from the coefficients as given
         return imag_limit_of(m.polynomials, m.coefficients["A"], m.coefficients["b"])
     return _ray_limit(lambda s: np.maximum(np.abs(amplification(m, 1j * s)),
-                                           np.abs(amplification(m, -1j * s))))
+                                           np.abs(amplification(m, -1j * s))),
+                      functions=boundary(m, np.array([1j])))
 
 
 @lru_cache(maxsize=256)
 def _oscillator_limit(m: Integrator) -> float:
     if tableau(m) is not None:
         return _imag_limit(m)
-    return _ray_limit(lambda s: spectral_radius(amplification_matrix(m, s)))
+    return _ray_limit(lambda s: spectral_radius(amplification_matrix(m, s)),
+                      functions=boundary(m, np.array([1j])))
 
 
 def real_interval(method: str | Integrator) -> float:

@@ -25,6 +25,7 @@ import scipy.sparse.linalg as spla
 from mslab.integrators.base import Integrator, get_method
 from mslab.scene import Scene
 from mslab.stability.functions import amplification
+from mslab.stability.gaps import boundary
 from mslab.stability.limits import S_MIN, TOL, _ray_limit, oscillator_limit
 from mslab.state import State
 from mslab.threads import single_threaded_blas
@@ -148,7 +149,7 @@ def _dt_limit(m: Integrator, lam: np.ndarray) -> float:
         z = s[:, None] * unit[None, :]
         return np.max(np.abs(amplification(m, z)), axis=1)
 
-    limit = _ray_limit(rho)
+    limit = _ray_limit(rho, functions=boundary(m, np.unique(unit)))
     if limit == 0.0:  # unstable at S_MIN, yet damping may leave a small stable step
         limit = _small_limit(rho)
     return limit / top
@@ -230,9 +231,10 @@ def step_map(method: str | Integrator, A: np.ndarray, B: np.ndarray | None, dt: 
 def whole_system_limit(m: Integrator, A: np.ndarray, B: np.ndarray | None, guess: float) -> float:
     """Largest dt with the spectral radius of :func:`step_map` ``<= 1 + TOL`` (first crossing).
 
-    From ``guess`` (the per-eigenvalue estimate) steps of 2 % up or down bracket the first
-    crossing, bisection narrows it to ``1e-10`` relative, and 16 steps geometrically spaced
-    from ``S_MIN / max|lam|`` to the bracket must be stable too (else the full scan of
+    From ``guess`` (the per-eigenvalue estimate, whose gap search finds an unstable gap of a
+    decoupled mode however narrow: the map is probed first 1e-6 above it) steps of 2 % up or
+    down bracket the first crossing, bisection narrows it to ``1e-10`` relative, and 16 steps
+    geometrically spaced from ``S_MIN / max|lam|`` to the bracket must be stable too (else the full scan of
     :func:`mslab.stability.limits._ray_limit` decides). Cost: about 60-100 eigenvalue problems of
     size ``k n`` (``k = 2`` or 3), each ``O((k n)^3)``: milliseconds for the lessons' ropes,
     which is why only scenes up to :data:`WHOLE_SYSTEM_DOFS` free dofs are judged this way.
@@ -242,7 +244,8 @@ def whole_system_limit(m: Integrator, A: np.ndarray, B: np.ndarray | None, guess
 
     top = float(np.max(np.abs(np.linalg.eigvals(np.block([[np.zeros_like(A), np.eye(A.shape[0])],
                                                           [A, np.zeros_like(A) if B is None else B]])))))
-    lo = hi = guess if 0 < guess < np.inf else 1.0 / top
+    lo = guess if 0 < guess < np.inf else 1.0 / top
+    hi = lo * (1.0 + 1e-6)  # first just above the guess: the lower edge of a narrow gap it found
     if stable(lo):
         while stable(hi) and hi * top < 1e6:
             lo, hi = hi, hi * 1.02
