@@ -58,14 +58,12 @@ def spring_batch(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: 
                  bounds: np.ndarray, run: np.ndarray, first: int, last: int) -> float:
     """Add the forces of segments ``first:last`` (one batch) to ``f``; return their dissipated power.
 
-    Runs go through :func:`spring_run` in three dimensions (:func:`spring_rows` when the arrays
-    are ``(dim, n)`` memory seen as ``(n, dim)``, the stepping loops' layout), the rest (and every
-    segment in one or two dimensions) through :func:`spring_range`: the same sums in the same order as
+    Runs go through :func:`spring_run` in three dimensions, the rest (and every segment in
+    one or two dimensions) through :func:`spring_range`: the same sums in the same order as
     :func:`spring_range` over the whole batch, bitwise the same forces (the power differs by
     round-off: a run sums it in lanes).
     """
     runs = x.shape[1] == 3
-    rows = x.strides[0] == x.itemsize  # coordinate-major memory (the stepping loops'): spring_rows
     longest = 0  # the longest run (at most about MAX_RUN springs): the buffers' size
     for s in range(first, last):
         if runs and run[s]:
@@ -76,11 +74,7 @@ def spring_batch(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: 
     for s in range(first, last):
         start = bounds[s]
         stop = bounds[s + 1]
-        if runs and run[s] and rows:
-            power = spring_rows(x, v, f, stiffness, rest_length, damping, damped, np.int64(i[start]),
-                                np.int64(j[start]), np.int64(start), np.int64(stop), power, pair, rates,
-                                run[s])
-        elif runs and run[s]:
+        if runs and run[s]:
             power = spring_run(x, v, f, stiffness, rest_length, damping, damped, np.int64(i[start]),
                                np.int64(j[start]), np.int64(start), np.int64(stop), power, pair, rates,
                                run[s])
@@ -236,116 +230,6 @@ def run_pair(xa: np.ndarray, xb: np.ndarray, va: np.ndarray, vb: np.ndarray, s: 
     out[3 * s] = scale * dx
     out[3 * s + 1] = scale * dy
     out[3 * s + 2] = scale * dz
-
-
-def spring_rows(x: np.ndarray, v: np.ndarray, f: np.ndarray, stiffness: np.ndarray,
-                rest_length: np.ndarray, damping: np.ndarray, damped: int, a: int, b: int,
-                start: int, stop: int, power: float, pair: np.ndarray, rates: np.ndarray,
-                flags: int = 1) -> float:
-    """:func:`spring_run` on coordinate-major memory: ``x.T`` is ``(3, n)``, one row per coordinate.
-
-    The arrays are ``(n, 3)`` views of ``(3, n)`` arrays (the stepping loops' layout,
-    :mod:`mslab.fast.loops`), so each coordinate of a run is a contiguous stretch: the loop reads
-    and writes them without shuffling interleaved x, y, z. The same pair forces
-    (:func:`pair_scale`) and powers, the same sums per particle in the same order as
-    :func:`spring_run`: bitwise the same forces. Cost: one square root and one division per
-    spring, ``O(m)`` memory traffic.
-    """
-    m = stop - start
-    xt = x.T
-    ft = f.T
-    k = stiffness[start:stop]
-    rest = rest_length[start:stop]
-    c = damping[start:stop]
-    o0, o1, o2 = pair[:m], pair[m:2 * m], pair[2 * m:3 * m]
-    x0, x1, x2 = xt[0, a:a + m], xt[1, a:a + m], xt[2, a:a + m]
-    y0, y1, y2 = xt[0, b:b + m], xt[1, b:b + m], xt[2, b:b + m]
-    if b - a >= m and damped == 0:  # disjoint ends: add the forces as they are computed
-        zero = k.dtype.type(0.0)
-        fa0, fa1, fa2 = ft[0, a:a + m], ft[1, a:a + m], ft[2, a:a + m]
-        fb0, fb1, fb2 = ft[0, b:b + m], ft[1, b:b + m], ft[2, b:b + m]
-        for s in range(m):
-            dx = x0[s] - y0[s]
-            dy = x1[s] - y1[s]
-            dz = x2[s] - y2[s]
-            scale, p = pair_scale(dx, dy, dz, zero, k[s], rest[s], zero, 0)
-            fa0[s] += scale * dx
-            fa1[s] += scale * dy
-            fa2[s] += scale * dz
-            fb0[s] -= scale * dx
-            fb1[s] -= scale * dy
-            fb2[s] -= scale * dz
-        return power
-    if damped:
-        vt = v.T
-        u0, u1, u2 = vt[0, a:a + m], vt[1, a:a + m], vt[2, a:a + m]
-        w0, w1, w2 = vt[0, b:b + m], vt[1, b:b + m], vt[2, b:b + m]
-        rate_of = rates[:m]
-        if (flags & 2) != 0:  # spring_batches.SAME_STIFFNESS: k and c in registers
-            k0, c0 = k[0], c[0]
-            for s in range(m):
-                rows_pair(x0, x1, x2, y0, y1, y2, u0, u1, u2, w0, w1, w2, s, k0, rest[s], c0, 1,
-                          o0, o1, o2, rate_of)
-        else:
-            for s in range(m):
-                rows_pair(x0, x1, x2, y0, y1, y2, u0, u1, u2, w0, w1, w2, s, k[s], rest[s], c[s], 1,
-                          o0, o1, o2, rate_of)
-        power += lane_sum(rate_of)
-    else:
-        zero = k.dtype.type(0.0)
-        for s in range(m):
-            rows_pair(x0, x1, x2, y0, y1, y2, x0, x1, x2, y0, y1, y2, s, k[s], rest[s], zero, 0,
-                      o0, o1, o2, rates)
-    scatter_row(ft[0, a:b + m], o0, b - a, m)
-    scatter_row(ft[1, a:b + m], o1, b - a, m)
-    scatter_row(ft[2, a:b + m], o2, b - a, m)
-    return power
-
-
-def rows_pair(x0: np.ndarray, x1: np.ndarray, x2: np.ndarray, y0: np.ndarray, y1: np.ndarray,
-              y2: np.ndarray, u0: np.ndarray, u1: np.ndarray, u2: np.ndarray, w0: np.ndarray,
-              w1: np.ndarray, w2: np.ndarray, s: int, k: float, rest: float, c: float, damped: int,
-              o0: np.ndarray, o1: np.ndarray, o2: np.ndarray, rates: np.ndarray) -> None:
-    """Spring ``s`` of :func:`spring_rows`: its pair force into ``o0[s], o1[s], o2[s]``, its power into ``rates[s]``.
-
-    ``x0..x2`` are the coordinates of the ``i`` ends, ``y0..y2`` of the ``j`` ends, ``u0..u2``
-    and ``w0..w2`` their velocities (read only when ``damped``, a constant of each loop). The
-    arithmetic of :func:`run_pair`.
-    """
-    dx = x0[s] - y0[s]
-    dy = x1[s] - y1[s]
-    dz = x2[s] - y2[s]
-    rate = x0.dtype.type(0.0)
-    if damped:
-        rate = dx * (u0[s] - w0[s])
-        rate += dy * (u1[s] - w1[s])
-        rate += dz * (u2[s] - w2[s])
-    scale, p = pair_scale(dx, dy, dz, rate, k, rest, c, damped)
-    if damped:
-        rates[s] = p
-    o0[s] = scale * dx
-    o1[s] = scale * dy
-    o2[s] = scale * dz
-
-
-def scatter_row(span: np.ndarray, out: np.ndarray, shift: int, m: int) -> None:
-    """Add a run's pair forces of one coordinate into ``span`` (that coordinate of particles ``a .. b+m-1``).
-
-    ``span[s] += out[s]`` (the ``i`` ends) and ``span[shift + s] -= out[s]`` (the ``j`` ends,
-    ``shift = b - a``), a particle with both getting ``-f`` of spring ``p - b`` first: the
-    order of :func:`spring_run`'s scatter, element by element.
-    """
-    head = min(shift, m)
-    for t in range(head):  # particles with an i end only
-        span[t] += out[t]
-    twice = span[shift:m]
-    late = out[shift:m] if shift < m else out[:0]
-    for t in range(twice.shape[0]):  # both ends: -f of spring p - b, then +f of spring p - a
-        twice[t] = (twice[t] - out[t]) + late[t]
-    tail = span[max(shift, m):]
-    early = out[max(m - shift, 0):]
-    for t in range(tail.shape[0]):  # a j end only
-        tail[t] -= early[t]
 
 
 def lane_sum(values: np.ndarray) -> float:
