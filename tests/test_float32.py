@@ -19,12 +19,12 @@ import pytest
 
 import mslab
 from mslab.effects import Springs
-from mslab.effects.base import Effect
 from mslab.errors import InstabilityError
 from mslab.ledger import initial_energy_scale
 from mslab.scenes import generators
 from mslab.stability import predicted_stable_dt
 from mslab.system import System
+from tests.test_fast import _Kick  # an effect without a kernel
 
 pytestmark = [pytest.mark.filterwarnings("ignore::mslab.StabilityWarning")]
 
@@ -77,24 +77,12 @@ def test_float32_is_refused_where_there_is_no_float32_loop(monkeypatch):
         mslab.simulate(chain, "implicit_euler", dt=1e-2, t_end=0.1, dtype="float32")
     with pytest.raises(ValueError, match="dtype 'float32'.*no compiled stepping loop"):
         mslab.simulate(chain, "fast_mass_spring", dt=1e-2, t_end=0.1, dtype="float32")
-    system = System(chain.system.mass, chain.system.pinned, chain.system.effects + (_Push(),), 3)
-    with pytest.raises(ValueError, match=r"dtype 'float32'.*\['push'\] have no compiled kernel"):
+    system = System(chain.system.mass, chain.system.pinned, chain.system.effects + (_Kick(),), 3)
+    with pytest.raises(ValueError, match=r"dtype 'float32'.*\['kick'\] have no compiled kernel"):
         mslab.simulate(dataclasses.replace(chain, system=system), "rk4", dt=1e-2, t_end=0.1, dtype="float32")
     for bad in ("float16", "double32", 3, True):
         with pytest.raises(ValueError, match="dtype must be one of float64, float32"):
             mslab.simulate(chain, "rk4", dt=1e-2, t_end=0.1, dtype=bad)
-
-
-class _Push(Effect):
-    """A constant push without a kernel."""
-
-    name = "push"
-
-    def force(self, x, v):
-        return np.full_like(x, 0.5)
-
-    def jacobians(self, x, v):
-        return None, None
 
 
 def test_float32_auto_steps_compiled_even_a_short_run():
