@@ -37,7 +37,7 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
              progress: bool | None = None, blowup: float = 1e6,
              stable_dt: float | None = None, backend: str | None = None,
              check_stability: bool = True, energy_blowup: float = 1e4,
-             threads: int | None = None) -> Trajectory:
+             threads: int | None = None, dtype: str = "float64") -> Trajectory:
     """Integrate a scene with a fixed step: ``Simulation(...)`` advanced to ``t_end``.
 
     Parameters
@@ -79,6 +79,11 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
     threads : int, optional
         Threads of the compiled loops (:func:`mslab.jit.thread_count`); None reads
         ``$MSLAB_THREADS``, else every core. The result is bitwise the same for any count.
+    dtype : {"float64", "float32"}
+        Precision of the stepping loop. ``"float32"`` steps the compiled loop only (ValueError
+        with ``backend="numpy"``, an implicit method or an effect without a compiled kernel):
+        about half the memory traffic, errors of float32 round-off growing with the steps
+        (measured in docs/precision.md, "float32"); saved samples and the ledger stay float64.
 
     Returns
     -------
@@ -97,7 +102,7 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
     begun = time.perf_counter()
     sim = Simulation(scene, method, dt, t_end=s.t_end if t_end is None else t_end, save_every=save_every,
                      blowup=blowup, stable_dt=stable_dt, backend=backend, check_stability=check_stability,
-                     energy_blowup=energy_blowup, threads=threads, _stacklevel=3)
+                     energy_blowup=energy_blowup, threads=threads, dtype=dtype, _stacklevel=3)
     sim.advance(progress=progress)
     _frame_loop_hint(scene, sim, time.perf_counter() - begun)
     return sim.trajectory

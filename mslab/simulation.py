@@ -81,7 +81,7 @@ class Simulation:
         Save every n-th step (and the declared end). Default: ``scene.settings.save_every``
         with a ``t_end``; an open-ended session saves only its first state (hours of frames
         fill no memory). ``trajectory`` adds the current state when it is not a saved step.
-    blowup, energy_blowup, stable_dt, check_stability, backend, threads
+    blowup, energy_blowup, stable_dt, check_stability, backend, threads, dtype
         As in :func:`mslab.simulate`.
 
     Attributes
@@ -95,7 +95,8 @@ class Simulation:
     def __init__(self, scene: Scene, method: str | Integrator | None = None, dt: float | None = None, *,
                  t_end: float | None = None, save_every: int | None = None, blowup: float = 1e6,
                  stable_dt: float | None = None, backend: str | None = None, check_stability: bool = True,
-                 energy_blowup: float = 1e4, threads: int | None = None, _stacklevel: int = 2):
+                 energy_blowup: float = 1e4, threads: int | None = None, dtype: str = "float64",
+                 _stacklevel: int = 2):
         from mslab.scene import Scene, own_copy
 
         if not isinstance(scene, Scene):
@@ -104,6 +105,7 @@ class Simulation:
         if backend is not None and not isinstance(backend, str):
             raise TypeError(f"backend must be a string or None, got {type(backend).__name__}")
         self.backend = fast.check_backend(backend)
+        self.dtype = fast.check_dtype(dtype, self.backend)  # float32: the compiled loop only
         self.threads = jit.thread_count(None if threads is None else whole("threads", threads, 1))
         self.scene = scene  # the user's: the run steps its own copy (editing the scene changes nothing)
         own = own_copy(scene)
@@ -219,7 +221,8 @@ class Simulation:
     def _begin(self) -> None:
         """Choose the loop (``auto``: from the declared length, else :data:`HORIZON`) and start the method."""
         expected = self.end if self.end is not None else HORIZON
-        runner = fast.stepper(self.system, self.integrator, self.backend, expected, self._scene.state0)
+        runner = fast.stepper(self.system, self.integrator, self.backend, expected, self._scene.state0,
+                              self.dtype)
         self._stepped = self.system  # the implicit methods' compiled path steps their own
         if runner is not None and runner.view is not None:  # numpy code on a compiled view
             self._stepped, runner = runner.view, None

@@ -68,8 +68,8 @@ def spring_batch(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: 
     for s in range(first, last):
         if runs and run[s]:
             longest = max(longest, np.int64(bounds[s + 1]) - np.int64(bounds[s]))
-    pair = np.empty(3 * longest)  # a run's pair forces
-    rates = np.empty(longest if damped else 0)  # a run's dissipated powers
+    pair = np.empty(3 * longest, x.dtype)  # a run's pair forces
+    rates = np.empty(longest if damped else 0, x.dtype)  # a run's dissipated powers
     power = 0.0
     for s in range(first, last):
         start = bounds[s]
@@ -95,13 +95,14 @@ def spring_range(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: 
     nothing measurable).
     """
     dim = x.shape[1]
+    zero = x.dtype.type(0.0)  # 0 in the state's precision (a float64 literal would widen float32)
     for q in range(start, stop):
         a = i[q]
         b = j[q]
         dx = x[a, 0] - x[b, 0]
-        dy = x[a, 1] - x[b, 1] if dim > 1 else 0.0
-        dz = x[a, 2] - x[b, 2] if dim > 2 else 0.0
-        rate = 0.0
+        dy = x[a, 1] - x[b, 1] if dim > 1 else zero
+        dz = x[a, 2] - x[b, 2] if dim > 2 else zero
+        rate = zero
         if damped:
             rate = dx * (v[a, 0] - v[b, 0])
             if dim > 1:
@@ -133,17 +134,19 @@ def pair_scale(dx: float, dy: float, dz: float, rate: float, stiffness: float, r
     (``Δv = v_i - v_j``; only read when ``damped``). This scale form has fewer operations
     between the loads of ``x`` and the stores into ``f`` than ``-k (d - L u)``, which bounds
     the loop (measured variant by variant, ``benchmarks/RESULTS.md``). A spring of zero
-    length has ``1/l`` taken as 0 and exerts ``-k d = 0`` (never NaN). Cost: one square root,
-    one division.
+    length has ``1/l`` taken as 0 and exerts ``-k d = 0`` (never NaN). The constants take the
+    precision of the coordinates (float32 stays float32). Cost: one square root, one division.
     """
     length = np.sqrt(dx * dx + dy * dy + dz * dz)
-    inv_l = 1.0 / length if length > 0.0 else 0.0
-    s = stiffness * (rest_length * inv_l - 1.0)
+    one = type(length)(1.0)
+    zero = type(length)(0.0)
+    inv_l = one / length if length > zero else zero
+    s = stiffness * (rest_length * inv_l - one)
     if damped:
         rate *= inv_l  # u . (v_i - v_j), the stretch rate
         cr = damping * rate
         return s - cr * inv_l, cr * rate
-    return s, 0.0
+    return s, zero
 
 
 def spring_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, stiffness: np.ndarray,
@@ -189,7 +192,7 @@ def spring_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, stiffness: np.ndarra
         power += lane_sum(rate_of)
     else:  # (one stiffness in a register measured no faster here: the loads are not what bounds it)
         for s in range(m):
-            run_pair(xa, xb, xa, xb, s, k[s], rest[s], 0.0, 0, out, rates)
+            run_pair(xa, xb, xa, xb, s, k[s], rest[s], k.dtype.type(0.0), 0, out, rates)
     # f[a + s] += out[s] and f[b + s] -= out[s], the j end first where a particle has both ends
     shift = 3 * (b - a)
     span = flat_f[3 * a:3 * (b + m)]
@@ -216,7 +219,7 @@ def run_pair(xa: np.ndarray, xb: np.ndarray, va: np.ndarray, vb: np.ndarray, s: 
     dx = xa[3 * s] - xb[3 * s]
     dy = xa[3 * s + 1] - xb[3 * s + 1]
     dz = xa[3 * s + 2] - xb[3 * s + 2]
-    rate = 0.0
+    rate = xa.dtype.type(0.0)
     if damped:
         rate = dx * (va[3 * s] - vb[3 * s])
         rate += dy * (va[3 * s + 1] - vb[3 * s + 1])

@@ -27,6 +27,8 @@ from __future__ import annotations
 import os
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from mslab import jit
 from mslab.fast.model import ForceModel, kernel_reason
 from mslab.fast.runner import Stepper
@@ -37,6 +39,8 @@ if TYPE_CHECKING:
     from mslab.system import System
 
 BACKENDS = ("auto", "numba", "numpy")
+#: the precisions of the compiled loop (``dtype``); float32 only there (:func:`check_dtype`)
+DTYPES = ("float64", "float32")
 
 #: Seconds a process pays before the compiled loops of a scene run (measured in
 #: benchmarks/RESULTS.md, "A compiled loop that loads at once"): loading them from numba's
@@ -56,6 +60,33 @@ def check_backend(name: str | None) -> str:
     if name not in BACKENDS:
         raise ValueError(f"unknown backend '{name}'; valid backends: {', '.join(BACKENDS)}")
     return name
+
+
+def check_dtype(dtype: object, backend: str) -> np.dtype:
+    """Return the run's precision as a numpy dtype; ValueError naming ``dtype`` where it cannot run.
+
+    ``"float64"`` (default, every backend) or ``"float32"`` (also ``np.float32``): the compiled
+    loop only, so ``backend="numpy"`` is refused; whether the scene and method have a compiled
+    loop is asked by :func:`stepper`. (docs/precision.md, "float32": its measured error.)
+    """
+    try:
+        name = np.dtype(dtype).name
+    except TypeError:
+        name = None
+    if name not in DTYPES or isinstance(dtype, bool):
+        raise ValueError(f"dtype must be one of {', '.join(DTYPES)}, got {dtype!r}")
+    if name != "float64" and backend == "numpy":
+        raise ValueError(f"dtype '{name}' runs only in the compiled loop: backend 'numpy' steps float64; "
+                         f"use backend='numba' or 'auto', or dtype='float64'")
+    return np.dtype(name)
+
+
+def _single_reason(system: System, integrator: Integrator) -> str | None:
+    """Why a float32 run cannot step this system with this method (None: it can)."""
+    reason = unsupported(system, integrator)
+    if reason is None and integrator.compiled[0] == "implicit":
+        reason = f"method '{integrator.name}' is implicit (its Newton solves are float64 only)"
+    return reason
 
 
 def forces_reason(system: System) -> str | None:
@@ -130,14 +161,26 @@ def numpy_seconds(system: System, integrator: Integrator, n_steps: int) -> float
 
 
 def stepper(system: System, integrator: Integrator, backend: str | None = None, n_steps: int | None = None,
-            state0: State | None = None) -> Stepper | None:
+            state0: State | None = None, dtype: object = "float64") -> Stepper | None:
     """Return a compiled :class:`~mslab.fast.runner.Stepper` for this run, or None for the numpy loop.
 
     ``backend="numba"`` raises ValueError when the compiled loop does not apply; ``"auto"``
     with ``n_steps`` and ``state0`` also weighs the run's length (:func:`worth_compiling`),
     except for a method that steps only compiled (``compiled_only``, e.g. the clamped Newton matrix).
+    ``dtype="float32"`` (:func:`check_dtype`) always takes the compiled loop, or raises
+    ValueError naming ``dtype`` where there is none (an implicit method, an effect without kernel).
     """
     name = check_backend(backend)
+    precision = check_dtype(dtype, name)
+    if precision != np.float64:
+        reason = _single_reason(system, integrator)
+        if reason is not None:
+            raise ValueError(f"dtype '{precision.name}' runs only in the compiled loop: {reason}")
+        if not jit.available():
+            jit.without_numba("numba")
+        runner = Stepper(system, integrator, precision)
+        runner.warm()
+        return runner
     if name == "numpy":
         return None
     reason = unsupported(system, integrator)
@@ -161,5 +204,5 @@ def stepper(system: System, integrator: Integrator, backend: str | None = None, 
     return runner
 
 
-__all__ = ["AUTO_SECONDS", "BACKENDS", "COMPILE_SECONDS", "ForceModel", "LOAD_SECONDS", "Stepper",
-           "check_backend", "stepper", "numpy_seconds", "unsupported", "worth_compiling"]
+__all__ = ["AUTO_SECONDS", "BACKENDS", "COMPILE_SECONDS", "DTYPES", "ForceModel", "LOAD_SECONDS", "Stepper",
+           "check_backend", "check_dtype", "stepper", "numpy_seconds", "unsupported", "worth_compiling"]

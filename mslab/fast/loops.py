@@ -5,8 +5,11 @@ module generated for one combination of effect kernels, appends the definition o
 ``scene_forces`` (the sum of the effects' own ``kernel`` functions) and compiles every
 function of it with :func:`mslab.jit.compiled` (``error_model="numpy"``), so numba
 inlines the kernels into the loops and caches them (a later process loads them in a
-fraction of a second). Nothing here knows any effect. Arrays are float64, C-contiguous: positions ``x``
-and velocities ``v`` of shape ``(n_particles, dim)``.
+fraction of a second). Nothing here knows any effect. Arrays are C-contiguous: positions ``x``
+and velocities ``v`` of shape ``(n_particles, dim)``, float64, or float32 (``dtype="float32"``:
+the state, forces and the loops' buffers in float32; the step's scalars, the saved samples and
+the dissipated work stay float64, so a particle update is computed in float64 and rounded once
+when stored).
 
 The loops are lean: forces accumulate into a scratch array ``f`` that holds the
 scene's constant forces ``f0`` between uses (gravity: see :class:`mslab.fast.ForceModel`),
@@ -111,9 +114,9 @@ def run_explicit_rk(x, v, dissipated, A, b, dt, step, n_steps, saved, k, xs, vs,
     xf = x.reshape(size)
     vf = v.reshape(size)
     f0f = f0.reshape(size)
-    kx = np.empty((s, n, dim))
-    kv = np.empty((s, n, dim))
-    xi = np.empty((n, dim))
+    kx = np.empty((s, n, dim), x.dtype)
+    kv = np.empty((s, n, dim), x.dtype)
+    xi = np.empty((n, dim), x.dtype)
     xif = xi.reshape(size)
     kxf = kx.reshape((s, size))
     kvf = kv.reshape((s, size))
@@ -225,9 +228,9 @@ def run_splitting(x, v, dissipated, drift, kick, reuse, kA, kb, mem_a, mem_p,
     ff = f.reshape(size)
     f0f = f0.reshape(size)
     maf = mem_a.reshape(size)
-    acc = np.empty((ns if ns > 1 else 0, size))
+    acc = np.empty((ns if ns > 1 else 0, size), x.dtype)
     pws = np.empty(ns)
-    vi = np.empty((n, dim) if ns > 1 else (0, dim))
+    vi = np.empty((n, dim) if ns > 1 else (0, dim), x.dtype)
     n_force = 0
     p_last = mem_p[0]
     while step < n_steps:
@@ -291,8 +294,8 @@ def run_two_step(method, x, v, dissipated, mem_x, mem_a, mem_p, dt, step, n_step
     ff = f.reshape(size)
     f0f = f0.reshape(size)
     verlet = method == VERLET
-    xg = x if verlet else np.empty((n, dim))
-    vg = v if verlet else np.empty((n, dim))
+    xg = x if verlet else np.empty((n, dim), x.dtype)
+    vg = v if verlet else np.empty((n, dim), x.dtype)
     xgf = xg.reshape(size)
     vgf = vg.reshape(size)
     n_force = 0

@@ -21,7 +21,7 @@ def kernel_reason(system: System) -> str | None:
     return None
 
 
-def _param(value: object) -> object:
+def _param(value: object, dtype: type = np.float64) -> object:
     """Return a kernel parameter as the compiled code wants it.
 
     Arrays become C-contiguous; integer arrays are narrowed to 32 bits where their values
@@ -29,7 +29,8 @@ def _param(value: object) -> object:
     (index arrays), else ``int32``, else ``int64``. Unsigned indices spare the compiled
     code numba's test for negative indices on every access, which costs a spring loop
     10-20 % of its time (measured, ``benchmarks/RESULTS.md``); kernels use such
-    values as indices only. Bools become ints; floats stay floats.
+    values as indices only. Bools become ints; float arrays take ``dtype`` (the run's
+    precision), float scalars stay Python floats.
     """
     if isinstance(value, np.ndarray):
         if value.dtype.kind in "iu":
@@ -39,7 +40,7 @@ def _param(value: object) -> object:
             return np.ascontiguousarray(value, dtype=np.int32 if small else np.int64)
         if value.dtype.kind == "b":
             return np.ascontiguousarray(value)
-        return np.ascontiguousarray(value, dtype=np.float64)
+        return np.ascontiguousarray(value, dtype=dtype)
     if isinstance(value, bool | np.bool_):
         return int(value)
     return value
@@ -86,21 +87,26 @@ class ForceModel:
         ``inv_mass`` repeated per coordinate (the loops' flat passes).
     module : module
         The compiled loops for these kernels (:func:`mslab.fast.compose.module_for`).
+    dtype : numpy dtype
+        The precision of the arrays above (float64; float32 for ``dtype="float32"`` runs): the
+        constant forces and inverse masses are formed in float64 and rounded once.
     """
 
-    def __init__(self, system: System):
+    def __init__(self, system: System, dtype: type = np.float64):
         reason = kernel_reason(system)
         if reason is not None:
             raise ValueError(reason)
         shape = (system.n_particles, system.dim)
         constant, self.kernels = plan(system)
         varying = [e for e, c in zip(system.effects, constant, strict=True) if not c]
-        self.f0 = np.zeros(shape)
+        self.dtype = np.dtype(dtype)
+        f0 = np.zeros(shape)
         for e, c in zip(system.effects, constant, strict=True):
             if c:
-                self.f0 += e.force(np.zeros(shape), np.zeros(shape))
-        self.params = tuple(tuple(_param(p) for p in e.kernel_params()) for e in varying)
-        self.inv_mass = np.ascontiguousarray(system.inv_mass, dtype=np.float64)
+                f0 += e.force(np.zeros(shape), np.zeros(shape))
+        self.f0 = f0.astype(self.dtype)
+        self.params = tuple(tuple(_param(p, self.dtype) for p in e.kernel_params()) for e in varying)
+        self.inv_mass = np.ascontiguousarray(system.inv_mass, dtype=self.dtype)
         self.w = np.repeat(self.inv_mass, system.dim)
         self.module = compose.module_for(self.kernels)
 

@@ -29,15 +29,18 @@ class Stepper:
     ``"implicit"`` there is no loop: the session steps the method on :attr:`view`, a
     :class:`~mslab.fast.newton.CompiledSystem`.
     Counts ``n_force`` on the System exactly as the numpy loop does (the loops return it).
+    ``dtype`` is the precision of the loop's state, forces and buffers (float64, or float32);
+    what it hands out (:attr:`x`, :attr:`v`, :meth:`state`, the saved samples) is float64.
     """
 
     #: most steps per compiled call
     max_chunk: int = 10000
 
-    def __init__(self, system: System, integrator: Integrator):
+    def __init__(self, system: System, integrator: Integrator, dtype: type = np.float64):
         self.system = system
         self.integrator = integrator
-        self.model = ForceModel(system)
+        self.dtype = np.dtype(dtype)
+        self.model = ForceModel(system, self.dtype)
         self.loop, arrays = integrator.compiled
         #: the implicit methods have no compiled loop: ``simulate`` steps them on this view, whose
         #: evaluations are compiled (mslab.fast.newton); :meth:`advance` is for the other loops
@@ -55,8 +58,8 @@ class Stepper:
 
     def load(self, state: State) -> None:
         """Take ``state`` (after the method's numpy ``start``) as the state the loop continues from."""
-        self._x = np.array(state.x, dtype=np.float64, order="C")
-        self._v = np.array(state.v, dtype=np.float64, order="C")
+        self._x = np.array(state.x, dtype=self.dtype, order="C")
+        self._v = np.array(state.v, dtype=self.dtype, order="C")
         self._mem = self._memory(state)
         self.dissipated = float(state.dissipated)
 
@@ -75,17 +78,18 @@ class Stepper:
 
     @property
     def x(self) -> np.ndarray:
-        """The loop's positions (its own array: read, do not keep)."""
-        return self._x
+        """The loop's positions (its own array in float64: read, do not keep; else a float64 copy)."""
+        return _f64(self._x)
 
     @property
     def v(self) -> np.ndarray:
-        """The loop's velocities (its own array: read, do not keep)."""
-        return self._v
+        """The loop's velocities (its own array in float64: read, do not keep; else a float64 copy)."""
+        return _f64(self._v)
 
     def state(self) -> State:
-        """Return a copy of the loop's current state, with the method's memory."""
-        return State(self._x.copy(), self._v.copy(), self._memory_tuple(), self.dissipated)
+        """Return a copy of the loop's current state, with the method's memory (float64)."""
+        return State(np.array(self._x, np.float64), np.array(self._v, np.float64), self._memory_tuple(),
+                     self.dissipated)
 
     def advance(self, state: State, dt: float, step: int, stop: int, saved: np.ndarray, k: int,
                 xs: np.ndarray, vs: np.ndarray, ds: np.ndarray, limit: float) -> tuple[int, int, State, bool]:
@@ -108,7 +112,7 @@ class Stepper:
             self.view.warm()
             return
         shape = (self.system.n_particles, self.system.dim)
-        x, v = np.zeros(shape), np.zeros(shape)
+        x, v = np.zeros(shape, self.dtype), np.zeros(shape, self.dtype)
         empty = np.empty((0,) + shape)
         mem = self._memory(State(x, v, (), 0.0), blank=True)
         self._run(x, v, 0.0, mem, (1.0, 0, 0, np.zeros(0, dtype=np.int64), 0, empty, empty, np.empty(0), 1.0))
@@ -136,11 +140,11 @@ class Stepper:
         """Memory arrays of the loop from the numpy ``start`` (zeros when ``blank``)."""
         shape = state.x.shape
         if self.loop == "splitting":
-            mem_a, mem_p = np.zeros(shape), np.zeros(1)
+            mem_a, mem_p = np.zeros(shape, self.dtype), np.zeros(1)
             if state.memory:
                 mem_a[:], mem_p[0] = state.memory
             return mem_a, mem_p
-        mem_x, mem_a, mem_p = np.zeros(shape), np.zeros(shape), np.zeros(1)
+        mem_x, mem_a, mem_p = np.zeros(shape, self.dtype), np.zeros(shape, self.dtype), np.zeros(1)
         if blank:
             return mem_x, mem_a, mem_p
         if self.loop == "verlet":
@@ -155,9 +159,14 @@ class Stepper:
         if self.loop == "splitting":
             if not (self.integrator.fsal and not self.system.velocity_dependent):
                 return ()
-            mem_a, mem_p = (m.copy() for m in self._mem)
+            mem_a, mem_p = (np.array(m, np.float64) for m in self._mem)
             return (mem_a, float(mem_p[0]))
-        mem_x, mem_a, mem_p = (m.copy() for m in self._mem)
+        mem_x, mem_a, mem_p = (np.array(m, np.float64) for m in self._mem)
         if self.loop == "verlet":
             return (mem_x, float(mem_p[0]))
         return (mem_x, mem_a, float(mem_p[0]))
+
+
+def _f64(a: np.ndarray) -> np.ndarray:
+    """Return ``a`` itself when it is float64, else a float64 copy."""
+    return a if a.dtype == np.float64 else a.astype(np.float64)
