@@ -18,6 +18,7 @@ from pathlib import Path
 
 import pytest
 from test_grading import _processes_with
+from test_grading_trust import _honest_source
 from test_grading_zips import lzma_zip
 
 from mslab.cli import main as cli_main
@@ -122,7 +123,7 @@ def _notebook(code: str) -> str:
 
 @pytest.fixture(scope="module")
 def handed_in(tmp_path_factory) -> Path:
-    """A class as a course collects it: folders, a zip, a notebook, a student named like an exercise."""
+    """A class as a course collects it: folders, zips, a notebook, a student named like an exercise."""
     cls = tmp_path_factory.mktemp("handed") / "class"
     reference = (SOURCE / TARGET / MODULE).read_text()
     for student in ("alice", TARGET, ".dave"):
@@ -137,6 +138,9 @@ def handed_in(tmp_path_factory) -> Path:
             zf.writestr(f"{TARGET}/pad{k}.py", b"0" * 10_000_000)
     # the reference, but decoding it first allocates a 4 GB dictionary: beyond the sandbox's 1024 MB
     (cls / "eve.zip").write_bytes(lzma_zip(f"eve/{TARGET}/{MODULE}", reference.encode()))
+    for k in (1, 2):  # honest variations of the reference (a batched solve, a counted bisection)
+        (cls / f"variant{k}" / TARGET).mkdir(parents=True)
+        (cls / f"variant{k}" / TARGET / MODULE).write_text(_honest_source(k))
     (cls / "carol.ipynb").write_text(_notebook(reference))
     (cls / "notes.txt").write_text("not a submission")
     return cls
@@ -149,11 +153,11 @@ def handed_in_graded(handed_in) -> dict:
 
 def test_every_entry_of_a_class_gets_a_row(handed_in_graded):
     assert sorted(handed_in_graded) == sorted([".dave", TARGET, "alice", "bob", "carol", "mallory",
-                                               "notes.txt", "trudy", "eve"])
+                                               "notes.txt", "trudy", "eve", "variant1", "variant2"])
 
 
 def test_folders_zips_notebooks_and_exercise_named_students_are_graded(handed_in_graded):
-    for name in ("alice", TARGET, "bob", "carol"):
+    for name in ("alice", TARGET, "bob", "carol", "variant1", "variant2"):
         r = handed_in_graded[name]
         assert r.total == r.max_points > 0, (name, [t.reason for e in r.exercises for t in e.tests])
 
@@ -178,7 +182,7 @@ def test_a_zip_is_decompressed_within_the_sandbox_memory(handed_in_graded):
 
 def test_layout_rule_and_flag(handed_in, tmp_path):
     exercises = [e for e in find_exercises(SOURCE) if e.name == TARGET]
-    assert len(expand_submissions([handed_in], exercises)) == 9
+    assert len(expand_submissions([handed_in], exercises)) == 11
     one = expand_submissions([handed_in], exercises, layout="submission")
     assert [s.path for s in one] == [handed_in]
     inner = expand_submissions([handed_in / "alice"], exercises)  # a submission: its file decides
