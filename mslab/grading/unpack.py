@@ -87,9 +87,13 @@ def _run(argv: list[str], fds: tuple[int, ...], cwd: Path, limits: Limits,
         env.update(HOME="/tmp", TMPDIR="/tmp")
     rlimit_uid = uid if limits.mode == "rlimits" else None
     cpu_s = int(limits.cpu) + 1
-    proc = subprocess.Popen(argv, cwd=cwd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                            stderr=subprocess.DEVNULL, env=env, start_new_session=True, pass_fds=fds,
-                            preexec_fn=_limits(limits.memory_mb, cpu_s, 1, limits.mode, box, rlimit_uid))
+    try:
+        proc = subprocess.Popen(argv, cwd=cwd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                stderr=subprocess.DEVNULL, env=env, start_new_session=True, pass_fds=fds,
+                                preexec_fn=_limits(limits.memory_mb, cpu_s, 1, limits.mode, box, rlimit_uid))
+    except (OSError, subprocess.SubprocessError) as err:
+        box.close()
+        return b"", f"the unpacking process could not start ({err})"
     box.started(proc.pid)
     budget, out, why = Budget(box, limits.cpu), b"", ""
     sel = selectors.DefaultSelector()
