@@ -17,14 +17,15 @@ pipe's write end without close-on-exec, as a careless parent would hand them ove
   channel is real, so this can fail). No payload ran in the trusted runner.
 - The inherited descriptors are unreachable from every sandbox: nothing was written into
   the pipe, the secret file's name and text appear nowhere.
-- Five leakers send their inputs back in the sandbox's words (an exception class named
-  ``<wire>``, a class or exception name, ``sys.exit``'s message, the exit code): the public
-  marker reaches their public reports (the channel is real), every hidden reason is its
-  kind's fixed phrase, and the hidden marker is in no output (JSON, CSV, the text report,
-  the journal's lines as they were written).
-- A CPU hog forks busy loops in sessions of their own at import and only sleeps itself: its
-  tests end on the CPU limit of its whole sandbox (the loops ran, in its box), and every
-  honest classmate keeps full marks.
+- In the namespace modes (as issue 20's class was graded), five leakers send their inputs
+  back in the sandbox's words (an exception class named ``<wire>``, a class or exception
+  name, ``sys.exit``'s message, the exit code): the public marker reaches their public
+  reports (the channel is real), every hidden reason is its kind's fixed phrase, and the
+  hidden marker is in no output (JSON, CSV, the text report, the journal's lines as they
+  were written). There too, a CPU hog forks busy loops in sessions of their own at import,
+  only sleeping itself: its tests end on the CPU limit of its whole sandbox (the loops ran,
+  in its box), and every honest classmate keeps full marks. In the rlimits modes their six
+  seats hold honest classmates.
 - Nothing is left: no marked daemon or loop, no grading folder in the private ``TMPDIR``, no
   cgroup of the grading (:func:`test_grading_trust.leftovers`).
 
@@ -287,7 +288,11 @@ sys.exit(main(sys.argv[2:]))
 
 #: students that implement nothing / only forward_euler_step (their bound)
 AT_MOST_EMPTY = ("payload_texts", "payload_raises", "payload_sizes", "quoter", "reader", "fd_prober",
-                 "edit_tests", "symlink", "hog", *LEAKERS)
+                 "edit_tests", "symlink")
+#: the leakers and the hog (issue 20's class): graded in the namespace modes, as that class was; in
+#: the rlimits modes their six seats hold honest classmates (each restart of their sandboxes costs)
+ROUND20 = ("hog", *LEAKERS)
+SPARE_HONEST = [f"honest{k}" for k in range(3, 3 + len(ROUND20))]
 AT_MOST_PARTIAL = ("sleeper", "spinner", "memory_bomb", "fork_bomb")
 HONEST = [f"honest{k}" for k in range(3)] + ["01_spring_force", EX, "zipped.zip", "notebook.ipynb",
                                              "flat.py", '=HYPERLINK("evil.example","x")']
@@ -300,7 +305,15 @@ def _notebook(code: str) -> str:
     return json.dumps({"cells": cells, "metadata": {}, "nbformat": 4, "nbformat_minor": 5})
 
 
-def _build(base: Path, prober: str) -> tuple[Path, Path]:
+def _with_round20(mode: str) -> bool:
+    return not mode.startswith("rlimits")
+
+
+def _honest(mode: str) -> list[str]:
+    return HONEST + ([] if _with_round20(mode) else SPARE_HONEST)
+
+
+def _build(base: Path, prober: str, mode: str) -> tuple[Path, Path]:
     """The marked source of exercise 02 and the class of 30 (each entry's file readable by all)."""
     src = base / "src"
     shutil.copytree(SOURCE / EX, src / EX, ignore=shutil.ignore_patterns("__pycache__"))
@@ -310,20 +323,22 @@ def _build(base: Path, prober: str) -> tuple[Path, Path]:
             fh.write(MARKED_TEST.format(kind=kind, mark=mark))
     cls = base / "class"
     tmp = base / "tmp"
-    files = {name: f"# {name}: my own work\n" + REFERENCE for name in HONEST if "." not in name}
+    files = {name: f"# {name}: my own work\n" + REFERENCE for name in _honest(mode) if "." not in name}
     files[HONEST[-1]] = REFERENCE
     files.update({
         "partial": REFERENCE + ONLY_FORWARD, "empty": EMPTY, "edit_tests": EMPTY,
         "sleeper": REFERENCE + SLEEPER, "spinner": REFERENCE + SPINNER,
         "memory_bomb": REFERENCE + MEMORY_BOMB, "fork_bomb": BOMB + REFERENCE + ONLY_FORWARD,
-        "quoter": QUOTER + EVERY_FUNCTION, "fd_prober": prober + EVERY_FUNCTION, "hog": HOG + EVERY_FUNCTION,
+        "quoter": QUOTER + EVERY_FUNCTION, "fd_prober": prober + EVERY_FUNCTION,
         "reader": READER.format(hidden=str(src / EX / "test_hidden.py"),
                                 classmate=str(cls / "honest0" / EX / MODULE), tmp=str(tmp),
                                 mark=DAEMON_MARK) + EVERY_FUNCTION,
         ".dotted": REFERENCE,
     })
-    files.update({name: f"{LEAK}\ndef _attack(*args):\n    {body}\n{EVERY_FUNCTION}"
-                  for name, body in LEAKERS.items()})
+    if _with_round20(mode):
+        files.update({name: f"{LEAK}\ndef _attack(*args):\n    {body}\n{EVERY_FUNCTION}"
+                      for name, body in LEAKERS.items()})
+        files["hog"] = HOG + EVERY_FUNCTION
     for group in ("texts", "raises", "sizes"):
         files[f"payload_{group}"] = payload_module(tmp / "payload-ran", group)
     for name, text in files.items():
@@ -373,7 +388,7 @@ def graded(request):
         os.chmod(secret, 0o600)
         fd = os.open(secret, os.O_RDONLY)  # inheritable: no O_CLOEXEC
         r, w = os.pipe()
-        src, cls = _build(base, fd_prober(w, fd))
+        src, cls = _build(base, fd_prober(w, fd), mode)
         tmp = base / "tmp"
         tmp.mkdir()
         os.chmod(tmp, 0o1777)
@@ -444,7 +459,7 @@ def test_every_entry_has_a_row(graded):
 
 def test_every_honest_student_has_full_marks(graded):
     docs = _docs(graded)
-    for name in HONEST:
+    for name in _honest(graded["mode"]):
         doc = _student(docs, name)
         assert doc["total"] == doc["max"] > 0, (name, [r for r in _reasons(doc) if r])
 
@@ -453,7 +468,7 @@ def test_every_attacker_scores_at_most_what_it_implemented(graded):
     docs = _docs(graded)
     empty, partial, full = (_student(docs, n)["total"] for n in ("empty", "partial", "honest0"))
     assert empty == 0 < partial < full  # the bounds below mean something
-    for name in AT_MOST_EMPTY:
+    for name in AT_MOST_EMPTY + (ROUND20 if _with_round20(graded["mode"]) else ()):
         assert _student(docs, name)["total"] <= empty, (name, _reasons(_student(docs, name)))
     for name in AT_MOST_PARTIAL:
         assert _student(docs, name)["total"] <= partial, (name, _reasons(_student(docs, name)))
@@ -508,6 +523,8 @@ def _test(doc: dict, suffix: str) -> dict:
 
 def test_the_leakers_send_the_public_marker_and_no_hidden_word(graded):
     """The channel is real (a public test quotes the student's own words); hidden reasons are fixed."""
+    if not _with_round20(graded["mode"]):
+        pytest.skip("the leakers are graded in the namespace modes (their seats hold honest students here)")
     docs = _docs(graded)
     for name in ("wire_class", "class_name", "exception_name", "exit_message"):
         assert PUBLIC_MARK in _test(_student(docs, name), "::test_marked_public")["reason"], name
@@ -524,6 +541,8 @@ def test_the_hog_hogged_in_its_own_box(graded):
     (On a machine so busy that the hog's box gets under a twentieth of a core, a test may
     reach the wall-clock backstop first; at least one reaches the CPU limit.)
     """
+    if not _with_round20(graded["mode"]):
+        pytest.skip("the hog is graded in the namespace modes (its seat holds an honest student here)")
     reasons = set(_reasons(_student(_docs(graded), "hog"), "test_hidden"))
     assert reasons <= {"hidden test: timed out (CPU time limit)", "hidden test: timed out (wall-clock limit)"}
     assert "hidden test: timed out (CPU time limit)" in reasons
