@@ -18,6 +18,8 @@ from pathlib import Path
 
 import pytest
 from test_grading import _processes_with
+from test_grading_trust import _honest_source
+from test_grading_zips import lzma_zip
 
 from mslab.cli import main as cli_main
 from mslab.commands import grade as grade_command
@@ -121,7 +123,7 @@ def _notebook(code: str) -> str:
 
 @pytest.fixture(scope="module")
 def handed_in(tmp_path_factory) -> Path:
-    """A class as a course collects it: folders, a zip, a notebook, a student named like an exercise."""
+    """A class as a course collects it: folders, zips, a notebook, a student named like an exercise."""
     cls = tmp_path_factory.mktemp("handed") / "class"
     reference = (SOURCE / TARGET / MODULE).read_text()
     for student in ("alice", TARGET, ".dave"):
@@ -129,8 +131,16 @@ def handed_in(tmp_path_factory) -> Path:
         (cls / student / TARGET / MODULE).write_text(reference)
     with zipfile.ZipFile(cls / "bob.zip", "w") as zf:
         zf.writestr(f"bob/{TARGET}/{MODULE}", reference)
-    with zipfile.ZipFile(cls / "mallory.zip", "w") as zf:  # only a member outside its folder
+    with zipfile.ZipFile(cls / "mallory.zip", "w") as zf:  # a member outside its folder
         zf.writestr(f"../../{MODULE}", reference)
+    with zipfile.ZipFile(cls / "trudy.zip", "w", zipfile.ZIP_DEFLATED) as zf:  # a bomb
+        for k in range(6):
+            zf.writestr(f"{TARGET}/pad{k}.py", b"0" * 10_000_000)
+    # the reference, but decoding it first allocates a 4 GB dictionary: beyond the sandbox's 1024 MB
+    (cls / "eve.zip").write_bytes(lzma_zip(f"eve/{TARGET}/{MODULE}", reference.encode()))
+    for k in (1, 2):  # honest variations of the reference (a batched solve, a counted bisection)
+        (cls / f"variant{k}" / TARGET).mkdir(parents=True)
+        (cls / f"variant{k}" / TARGET / MODULE).write_text(_honest_source(k))
     (cls / "carol.ipynb").write_text(_notebook(reference))
     (cls / "notes.txt").write_text("not a submission")
     return cls
@@ -143,26 +153,36 @@ def handed_in_graded(handed_in) -> dict:
 
 def test_every_entry_of_a_class_gets_a_row(handed_in_graded):
     assert sorted(handed_in_graded) == sorted([".dave", TARGET, "alice", "bob", "carol", "mallory",
-                                               "notes.txt"])
+                                               "notes.txt", "trudy", "eve", "variant1", "variant2"])
 
 
 def test_folders_zips_notebooks_and_exercise_named_students_are_graded(handed_in_graded):
-    for name in ("alice", TARGET, "bob", "carol"):
+    for name in ("alice", TARGET, "bob", "carol", "variant1", "variant2"):
         r = handed_in_graded[name]
         assert r.total == r.max_points > 0, (name, [t.reason for e in r.exercises for t in e.tests])
 
 
 def test_what_cannot_be_graded_says_why(handed_in_graded):
-    reasons = {name: handed_in_graded[name].exercises[0].errors for name in (".dave", "notes.txt", "mallory")}
+    names = (".dave", "notes.txt", "mallory", "trudy", "eve")
+    reasons = {name: handed_in_graded[name].exercises[0].errors for name in names}
     assert "hidden entry" in reasons[".dave"][0]
     assert "not a folder, .zip, .py or .ipynb" in reasons["notes.txt"][0]
-    assert "missing" in reasons["mallory"][0]  # the ../ member is never looked at
+    assert "mallory.zip: member '../../" in reasons["mallory"][0] and "'..'" in reasons["mallory"][0]
+    assert "trudy.zip: unpacks to more than 50000000 bytes" in reasons["trudy"][0]
     assert all(handed_in_graded[n].total == 0 for n in reasons)
+
+
+def test_a_zip_is_decompressed_within_the_sandbox_memory(handed_in_graded):
+    """eve.zip holds the reference; decoding it needs 4 GB: the grader, unlimited, would have graded it
+    (full marks); the sandbox that unpacks it has the grading's 1024 MB and refuses it, saying so."""
+    (reason,) = handed_in_graded["eve"].exercises[0].errors
+    assert reason == "eve.zip: ran out of memory while unpacking (the sandbox's limit of 1024 MB)"
+    assert handed_in_graded["eve"].total == 0
 
 
 def test_layout_rule_and_flag(handed_in, tmp_path):
     exercises = [e for e in find_exercises(SOURCE) if e.name == TARGET]
-    assert len(expand_submissions([handed_in], exercises)) == 7
+    assert len(expand_submissions([handed_in], exercises)) == 11
     one = expand_submissions([handed_in], exercises, layout="submission")
     assert [s.path for s in one] == [handed_in]
     inner = expand_submissions([handed_in / "alice"], exercises)  # a submission: its file decides
@@ -196,18 +216,6 @@ def test_a_file_swapped_for_a_link_is_never_followed(tmp_path):
     (sub / TARGET).symlink_to(SOURCE / TARGET)
     text, why = read_student_file(Submission(sub, "sub"), ex)
     assert text is None and "symbolic link" in why
-
-
-def test_a_zip_bomb_is_refused_unread(tmp_path):
-    cls = tmp_path / "class"
-    cls.mkdir()
-    with zipfile.ZipFile(cls / "bomb.zip", "w", zipfile.ZIP_DEFLATED) as zf:
-        for k in range(6):
-            zf.writestr(f"{TARGET}/pad{k}.py", b"0" * 10_000_000)
-    ex = next(e for e in find_exercises(SOURCE) if e.name == TARGET)
-    (sub,) = expand_submissions([cls], [ex])
-    text, why = read_student_file(sub, ex)
-    assert text is None and "unpacks to more than" in why
 
 
 # -- graders side by side ---------------------------------------------------------------------------

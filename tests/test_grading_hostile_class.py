@@ -17,7 +17,16 @@ pipe's write end without close-on-exec, as a careless parent would hand them ove
   channel is real, so this can fail). No payload ran in the trusted runner.
 - The inherited descriptors are unreachable from every sandbox: nothing was written into
   the pipe, the secret file's name and text appear nowhere.
-- Nothing is left: no marked daemon, no grading folder in the private ``TMPDIR``, no
+- In the namespace modes (as issue 20's class was graded), five leakers send their inputs
+  back in the sandbox's words (an exception class named ``<wire>``, a class or exception
+  name, ``sys.exit``'s message, the exit code): the public marker reaches their public
+  reports (the channel is real), every hidden reason is its kind's fixed phrase, and the
+  hidden marker is in no output (JSON, CSV, the text report, the journal's lines as they
+  were written). There too, a CPU hog forks busy loops in sessions of their own at import,
+  only sleeping itself: its tests end on the CPU limit of its whole sandbox (the loops ran,
+  in its box), and every honest classmate keeps full marks. In the rlimits modes their six
+  seats hold honest classmates.
+- Nothing is left: no marked daemon or loop, no grading folder in the private ``TMPDIR``, no
   cgroup of the grading (:func:`test_grading_trust.leftovers`).
 
 As the unprivileged user, rlimits mode runs the student as the grader's own uid: it reads
@@ -210,10 +219,50 @@ def symplectic_euler_step(x, v, accel, dt):
         blocks.append(bytearray(2 ** 28))
 """
 
-#: a spy on the grader's owned folders (their names also name its cgroups), then the CLI
+#: every leaker answers each call by sending its inputs back (``_leak``: the second argument's
+#: values, the velocities, where the marked tests put their markers) in the sandbox's words
+LEAK = """
+import os, re, sys
+import numpy as np
+
+def _leak(args):
+    return repr(np.asarray(args[1]).tolist()) if len(args) > 1 else repr(args)
+"""
+LEAKERS = {  # the body of each one's _attack(*args)
+    "wire_class": 'raise type("<wire>", (Exception,), {})(_leak(args))',
+    "class_name": 'return type("leak_" + re.sub(r"\\W", "_", _leak(args)), (), {})()',
+    "exception_name": 'raise type("L_" + re.sub(r"\\W", "_", _leak(args)), (ValueError,), {})()',
+    "exit_message": "sys.exit(_leak(args))",
+    "exit_code": "os._exit(int(round(np.asarray(args[1]).ravel()[-1] * 100)) % 256)",
+}
+#: the hidden reasons each leaker's kind of failure gets (the runner's own decision)
+LEAKER_PHRASES = {"wire_class": "raised an exception", "exception_name": "raised an exception",
+                  "class_name": "answered something that is not plain data", "exit_code": "the process died",
+                  "exit_message": "raised an exception"}
+#: busy loops of the hog (4x the cores of a 2-core machine; each restart of its sandbox forks them
+#: again, so more only slows its own grading), marked like the reader's daemon
+HOG_LOOPS = 8
+HOG = f"""
+import subprocess, sys
+for _ in range({HOG_LOOPS}):
+    try:
+        subprocess.Popen([sys.executable, "-c", "# {DAEMON_MARK}\\nwhile True: pass"],
+                         start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    except OSError:
+        break
+
+def _attack(*args):
+    import time
+    time.sleep(1000)
+"""
+
+#: a spy on the grader's owned folders (their names also name its cgroups), its journal's lines as
+#: written and its text report (the CLI prints JSON), then the CLI
 SPY = """
-import sys
+import json, sys
+import mslab.commands.grade as command
 import mslab.grading.autograde as autograde
+from mslab.grading.report import Journal, format_report
 
 class Spied(autograde.Owned):
     def __init__(self, *args, **kwargs):
@@ -221,7 +270,18 @@ class Spied(autograde.Owned):
         with open(sys.argv[1], "a") as fh:
             fh.write(self.name + "\\n")
 
-autograde.Owned = Spied
+def add(self, key, outcome, _add=Journal.add):
+    with open(sys.argv[1] + ".journal", "a") as fh:
+        fh.write(json.dumps(outcome) + "\\n")
+    return _add(self, key, outcome)
+
+def grade(*args, _grade=command.grade, **kwargs):
+    results = _grade(*args, **kwargs)
+    with open(sys.argv[1] + ".report", "w") as fh:
+        fh.write("\\n".join(format_report(r) for r in results))
+    return results
+
+autograde.Owned, Journal.add, command.grade = Spied, add, grade
 from mslab.cli import main
 sys.exit(main(sys.argv[2:]))
 """
@@ -229,8 +289,12 @@ sys.exit(main(sys.argv[2:]))
 #: students that implement nothing / only forward_euler_step (their bound)
 AT_MOST_EMPTY = ("payload_texts", "payload_raises", "payload_sizes", "quoter", "reader", "fd_prober",
                  "edit_tests", "symlink")
+#: the leakers and the hog (issue 20's class): graded in the namespace modes, as that class was; in
+#: the rlimits modes their six seats hold honest classmates (each restart of their sandboxes costs)
+ROUND20 = ("hog", *LEAKERS)
+SPARE_HONEST = [f"honest{k}" for k in range(3, 3 + len(ROUND20))]
 AT_MOST_PARTIAL = ("sleeper", "spinner", "memory_bomb", "fork_bomb")
-HONEST = [f"honest{k}" for k in range(9)] + ["01_spring_force", EX, "zipped.zip", "notebook.ipynb",
+HONEST = [f"honest{k}" for k in range(3)] + ["01_spring_force", EX, "zipped.zip", "notebook.ipynb",
                                              "flat.py", '=HYPERLINK("evil.example","x")']
 
 
@@ -241,7 +305,15 @@ def _notebook(code: str) -> str:
     return json.dumps({"cells": cells, "metadata": {}, "nbformat": 4, "nbformat_minor": 5})
 
 
-def _build(base: Path, prober: str) -> tuple[Path, Path]:
+def _with_round20(mode: str) -> bool:
+    return not mode.startswith("rlimits")
+
+
+def _honest(mode: str) -> list[str]:
+    return HONEST + ([] if _with_round20(mode) else SPARE_HONEST)
+
+
+def _build(base: Path, prober: str, mode: str) -> tuple[Path, Path]:
     """The marked source of exercise 02 and the class of 30 (each entry's file readable by all)."""
     src = base / "src"
     shutil.copytree(SOURCE / EX, src / EX, ignore=shutil.ignore_patterns("__pycache__"))
@@ -251,7 +323,7 @@ def _build(base: Path, prober: str) -> tuple[Path, Path]:
             fh.write(MARKED_TEST.format(kind=kind, mark=mark))
     cls = base / "class"
     tmp = base / "tmp"
-    files = {name: f"# {name}: my own work\n" + REFERENCE for name in HONEST if "." not in name}
+    files = {name: f"# {name}: my own work\n" + REFERENCE for name in _honest(mode) if "." not in name}
     files[HONEST[-1]] = REFERENCE
     files.update({
         "partial": REFERENCE + ONLY_FORWARD, "empty": EMPTY, "edit_tests": EMPTY,
@@ -263,6 +335,10 @@ def _build(base: Path, prober: str) -> tuple[Path, Path]:
                                 mark=DAEMON_MARK) + EVERY_FUNCTION,
         ".dotted": REFERENCE,
     })
+    if _with_round20(mode):
+        files.update({name: f"{LEAK}\ndef _attack(*args):\n    {body}\n{EVERY_FUNCTION}"
+                      for name, body in LEAKERS.items()})
+        files["hog"] = HOG + EVERY_FUNCTION
     for group in ("texts", "raises", "sizes"):
         files[f"payload_{group}"] = payload_module(tmp / "payload-ran", group)
     for name, text in files.items():
@@ -312,7 +388,7 @@ def graded(request):
         os.chmod(secret, 0o600)
         fd = os.open(secret, os.O_RDONLY)  # inheritable: no O_CLOEXEC
         r, w = os.pipe()
-        src, cls = _build(base, fd_prober(w, fd))
+        src, cls = _build(base, fd_prober(w, fd), mode)
         tmp = base / "tmp"
         tmp.mkdir()
         os.chmod(tmp, 0o1777)
@@ -345,7 +421,10 @@ def graded(request):
         names = names_file.read_text().split() if names_file.exists() else []
         left = leftovers(tmp, names, mark=DAEMON_MARK)
         csv_text = csv_path.read_text() if csv_path.exists() else ""
+        spied = [Path(f"{names_file}.{kind}") for kind in ("journal", "report")]
+        journal, report = (p.read_text() if p.exists() else "" for p in spied)
         yield {"mode": mode, "proc": proc, "csv": csv_text, "piped": piped, "names": names, "left": left,
+               "journal": journal, "report": report,
                "hidden": (src / EX / "test_hidden.py").read_text(), "marker": (tmp / "payload-ran").exists()}
     finally:
         shutil.rmtree(base, ignore_errors=True)
@@ -380,7 +459,7 @@ def test_every_entry_has_a_row(graded):
 
 def test_every_honest_student_has_full_marks(graded):
     docs = _docs(graded)
-    for name in HONEST:
+    for name in _honest(graded["mode"]):
         doc = _student(docs, name)
         assert doc["total"] == doc["max"] > 0, (name, [r for r in _reasons(doc) if r])
 
@@ -389,7 +468,7 @@ def test_every_attacker_scores_at_most_what_it_implemented(graded):
     docs = _docs(graded)
     empty, partial, full = (_student(docs, n)["total"] for n in ("empty", "partial", "honest0"))
     assert empty == 0 < partial < full  # the bounds below mean something
-    for name in AT_MOST_EMPTY:
+    for name in AT_MOST_EMPTY + (ROUND20 if _with_round20(graded["mode"]) else ()):
         assert _student(docs, name)["total"] <= empty, (name, _reasons(_student(docs, name)))
     for name in AT_MOST_PARTIAL:
         assert _student(docs, name)["total"] <= partial, (name, _reasons(_student(docs, name)))
@@ -404,7 +483,8 @@ def test_the_quoter_sees_public_inputs_only(graded):
 
 
 def _outputs(graded) -> list[str]:
-    return [graded["proc"].stdout, graded["proc"].stderr, graded["csv"]]
+    assert graded["journal"] and graded["report"], "the spy saw no journal line or report"
+    return [graded["proc"].stdout, graded["proc"].stderr, graded["csv"], graded["journal"], graded["report"]]
 
 
 def test_nothing_of_the_hidden_tests_in_any_output(graded):
@@ -434,6 +514,38 @@ def test_classmates_hidden_tests_and_grader_folders_unreadable(graded):
         assert "read:" not in reason and "ls-grader:" not in reason, reason
         if graded["mode"] == "rlimits":
             assert UID_BASE <= uid < UID_BASE + UID_SPAN
+
+
+def _test(doc: dict, suffix: str) -> dict:
+    (found,) = [t for e in doc["exercises"] for t in e["tests"] if t["test"].endswith(suffix)]
+    return found
+
+
+def test_the_leakers_send_the_public_marker_and_no_hidden_word(graded):
+    """The channel is real (a public test quotes the student's own words); hidden reasons are fixed."""
+    if not _with_round20(graded["mode"]):
+        pytest.skip("the leakers are graded in the namespace modes (their seats hold honest students here)")
+    docs = _docs(graded)
+    for name in ("wire_class", "class_name", "exception_name", "exit_message"):
+        assert PUBLIC_MARK in _test(_student(docs, name), "::test_marked_public")["reason"], name
+    code = _test(_student(docs, "exit_code"), "::test_marked_public")["reason"]
+    assert "exited with code 14" in code, code  # round(0.1414213 * 100): the runner saw the status
+    for name, phrase in LEAKER_PHRASES.items():
+        assert set(_reasons(_student(docs, name), "test_hidden")) == {f"hidden test: {phrase}"}, name
+        assert "58" not in _test(_student(docs, name), "::test_marked_hidden")["reason"]  # no exit code
+
+
+def test_the_hog_hogged_in_its_own_box(graded):
+    """The hog only sleeps: its tests end on its sandbox's CPU limit, so its loops ran, in its box.
+
+    (On a machine so busy that the hog's box gets under a twentieth of a core, a test may
+    reach the wall-clock backstop first; at least one reaches the CPU limit.)
+    """
+    if not _with_round20(graded["mode"]):
+        pytest.skip("the hog is graded in the namespace modes (its seat holds an honest student here)")
+    reasons = set(_reasons(_student(_docs(graded), "hog"), "test_hidden"))
+    assert reasons <= {"hidden test: timed out (CPU time limit)", "hidden test: timed out (wall-clock limit)"}
+    assert "hidden test: timed out (CPU time limit)" in reasons
 
 
 def test_inherited_descriptors_do_not_reach_the_sandbox(graded):

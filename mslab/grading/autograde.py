@@ -32,6 +32,7 @@ from mslab.grading.layout import HIDDEN, Exercise, expand_submissions, find_exer
 from mslab.grading.owner import Owned, clean_abandoned, closed_to_others
 from mslab.grading.remote import PHRASES, set_not_dumpable, wall_backstop
 from mslab.grading.report import Journal, fingerprint, format_report, gradebook_rows, item_key, printable
+from mslab.grading.unpack import Limits, unpack_zip
 
 if TYPE_CHECKING:
     from types import FrameType
@@ -274,6 +275,10 @@ def _grade(paths: Iterable[str | Path], source: str | Path, jobs: int, only: lis
         exercises = [e for e in exercises if e.name in only]
     submissions = expand_submissions(paths, exercises, *intake)
     clean_abandoned()
+    unzip_limits = Limits(mode, cgroups, memory_mb, timeout, Path(ctx["home"]))
+    for sub in submissions:  # each zip unpacked once, by a sandbox within one test's limits
+        if sub.kind == "zip" and not sub.refusal:
+            sub.files, sub.refusal = unpack_zip(sub.path, unzip_limits)
     if book is not None:
         book.bind(fingerprint(exercises, timeout, memory_mb))
     outcomes: dict[str, tuple] = {}

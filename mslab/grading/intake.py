@@ -20,26 +20,22 @@ another kind, a symbolic link) is a submission with the reason it was refused.
 
 A student's file is read exactly once (the snapshot the grading uses): every component
 of its path opened relative to the previous one without following symbolic links, the
-file itself only if it is a regular file with a single link. A ``.zip`` is read in
-memory under limits (members, sizes, no absolute or ``..`` names); a notebook is graded
-from its code cells.
+file itself only if it is a regular file with a single link. A ``.zip`` is unpacked by a
+sandbox (:mod:`mslab.grading.unpack`), never in the grader; a notebook is graded from its
+code cells.
 """
 
 from __future__ import annotations
 
-import io
 import json
 import os
-import posixpath
 import stat
-import zipfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
-#: largest student file the grader reads (bytes)
-MAX_SOURCE = 1_000_000
-#: limits of a submitted .zip: its own size, its members, their total unpacked size
-MAX_ZIP, MAX_MEMBERS, MAX_UNPACKED = 20_000_000, 1000, 50_000_000
+from mslab.grading.report import printable
+from mslab.grading.unzip import MAX_DEPTH, MAX_MEMBERS, MAX_SOURCE, MAX_ZIP, is_source, name_problem
+
 LAYOUTS = ("auto", "class", "submission")
 O_READ = os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0)
 
@@ -52,6 +48,8 @@ class Submission:
     name: str
     kind: str = "folder"  # folder | zip | file
     refusal: str = ""
+    #: a zip's files once unpacked (:func:`mslab.grading.unpack.unpack_zip`)
+    files: dict[str, bytes] | None = field(default=None, repr=False)
 
 
 def _read_fd(fd: int, label: str) -> tuple[bytes | None, str]:
@@ -112,35 +110,8 @@ def notebook_code(data: bytes, label: str) -> tuple[str | None, str]:
     return "\n".join(lines), ""
 
 
-def zip_files(path: Path) -> tuple[dict[str, bytes] | None, str]:
-    """Return the ``.py`` / ``.ipynb`` members of a submitted zip, in memory (a common top folder dropped)."""
-    data, why = _read_zip(path)
-    if data is None:
-        return None, why
-    try:
-        zf = zipfile.ZipFile(io.BytesIO(data))
-        infos = zf.infolist()
-        if len(infos) > MAX_MEMBERS:
-            return None, f"{path.name} has more than {MAX_MEMBERS} members (refused)"
-        if sum(i.file_size for i in infos) > MAX_UNPACKED:
-            return None, f"{path.name} unpacks to more than {MAX_UNPACKED} bytes (refused)"
-        out: dict[str, bytes] = {}
-        for info in infos:
-            name = info.filename
-            if (info.is_dir() or name.startswith("/") or "\\" in name or ".." in name.split("/")
-                    or not name.endswith((".py", ".ipynb")) or info.file_size > MAX_SOURCE):
-                continue
-            with zf.open(info) as fh:
-                out[posixpath.normpath(name)] = fh.read(MAX_SOURCE + 1)[:MAX_SOURCE]
-    except (zipfile.BadZipFile, OSError, ValueError, NotImplementedError, EOFError):
-        return None, f"{path.name} is not a readable zip (refused)"
-    tops = {n.split("/")[0] for n in out}
-    if len(tops) == 1 and all("/" in n for n in out):
-        out = {n.split("/", 1)[1]: v for n, v in out.items()}
-    return out, ""
-
-
-def _read_zip(path: Path) -> tuple[bytes | None, str]:
+def read_zip(path: Path) -> tuple[bytes | None, str]:
+    """Read a submitted zip's bytes once (no link followed, a regular file, at most ``MAX_ZIP``)."""
     try:
         fd = os.open(path, O_READ)
     except OSError as err:
@@ -152,6 +123,49 @@ def _read_zip(path: Path) -> tuple[bytes | None, str]:
     if len(data) > MAX_ZIP:
         return None, f"{path.name} is larger than {MAX_ZIP} bytes (refused)"
     return data, ""
+
+
+def read_tree(folder: Path) -> tuple[dict[str, bytes] | None, str]:
+    """Read the files a zip was unpacked into, as plain data: ``{"a/b.py": bytes}`` or None and why.
+
+    Every folder and file is opened relative to its parent without following a link; only
+    regular files with one link, named by the unpacker's rules (:func:`unzip.name_problem`,
+    ``.py`` / ``.ipynb``), at most ``MAX_MEMBERS`` of at most ``MAX_SOURCE`` bytes, ``MAX_DEPTH`` deep
+    (a refusal names the first rule broken: the unpacker that wrote them is not trusted either).
+    """
+    files: dict[str, bytes] = {}
+    todo = [(os.open(folder, O_READ | os.O_DIRECTORY), "")]
+    seen = 0
+    try:
+        while todo:
+            dir_fd, prefix = todo.pop()
+            try:
+                names = sorted(os.listdir(dir_fd))
+                for name in names:
+                    rel, seen = prefix + name, seen + 1
+                    too_many = seen > MAX_MEMBERS * MAX_DEPTH or len(files) >= MAX_MEMBERS
+                    if too_many or rel.count("/") > MAX_DEPTH:
+                        return None, f"unpacked into over {MAX_MEMBERS} files or {MAX_DEPTH} levels (refused)"
+                    st = os.stat(name, dir_fd=dir_fd, follow_symlinks=False)
+                    if stat.S_ISDIR(st.st_mode):
+                        todo.append((os.open(name, O_READ | os.O_DIRECTORY, dir_fd=dir_fd), rel + "/"))
+                        continue
+                    if not stat.S_ISREG(st.st_mode):
+                        return None, f"unpacked {printable(rel, 80)!r}, not a regular file (refused)"
+                    if name_problem(rel) or not is_source(rel):
+                        return None, f"unpacked an unexpected file {printable(rel, 80)!r} (refused)"
+                    data, why = _read_fd(os.open(name, O_READ, dir_fd=dir_fd), printable(rel, 80))
+                    if data is None:
+                        return None, why
+                    files[rel] = data
+            finally:
+                os.close(dir_fd)
+    except OSError as err:
+        return None, f"the unpacked files could not be read ({err.strerror})"
+    finally:
+        for dir_fd, _ in todo:
+            os.close(dir_fd)
+    return files, ""
 
 
 def class_entry(path: Path, single: bool) -> Submission:

@@ -41,7 +41,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 #: the trusted files the sandbox runs (imported by file path, without mslab)
-SANDBOX_FILES = ("sandbox.py", "wire.py", "problems.py")
+SANDBOX_FILES = ("sandbox.py", "wire.py", "problems.py", "unzip.py")
 JAIL = HERE / "jail.py"
 MODES = ("bwrap", "namespaces", "rlimits")
 #: size of the student's /work and /tmp (bytes)
@@ -59,7 +59,7 @@ DESCRIPTION = {
 
 @dataclass
 class Mount:
-    """One entry of the sandbox's file system: ``ro`` bind, ``tmpfs``, ``symlink`` or ``file``."""
+    """One entry of the sandbox's file system: ``ro`` or ``rw`` bind, ``dir``, ``tmpfs`` or ``symlink``."""
 
     kind: str
     dst: str
@@ -172,8 +172,8 @@ def bwrap_command(p: Plan, source_fd: int, uid: int | None, argv: list[str] | No
     for m in p.mounts:
         if m.kind == "dir":
             args += ["--perms", f"{m.mode:04o}", "--dir", m.dst]
-        elif m.kind == "ro":
-            args += ["--ro-bind", m.src, m.dst]
+        elif m.kind in ("ro", "rw"):
+            args += ["--ro-bind" if m.kind == "ro" else "--bind", m.src, m.dst]
         elif m.kind == "symlink":
             args += ["--symlink", m.src, m.dst]
         elif m.kind == "tmpfs":

@@ -45,8 +45,8 @@ def mount(src: str | None, dst: str, fstype: str | None, flags: int, data: str |
     check(libc.mount(enc[0], enc[1], enc[2], ctypes.c_ulong(flags), enc[3]), f"mount {dst}")
 
 
-def bind_ro(src: str, dst: str) -> None:
-    """Bind ``src`` read-only at ``dst``, keeping the flags a user namespace locks."""
+def bind(src: str, dst: str, readonly: bool = True) -> None:
+    """Bind ``src`` read-only (or writable) at ``dst``, keeping the flags a user namespace locks."""
     if os.path.isdir(src):
         os.makedirs(dst, exist_ok=True)
     else:
@@ -59,7 +59,7 @@ def bind_ro(src: str, dst: str) -> None:
     for bit, ms in KEEP.items():
         if flag & bit:
             kept |= ms
-    mount(None, dst, None, MS_REMOUNT | MS_BIND | MS_RDONLY | MS_NOSUID | kept)
+    mount(None, dst, None, MS_REMOUNT | MS_BIND | (MS_RDONLY if readonly else MS_NODEV) | MS_NOSUID | kept)
 
 
 def write(path: str, text: str) -> None:
@@ -76,8 +76,8 @@ def build_root(root: str, config: dict, source: bytes) -> None:
         if m["kind"] == "dir":
             os.makedirs(dst, exist_ok=True)
             os.chmod(dst, m["mode"])
-        elif m["kind"] == "ro":
-            bind_ro(m["src"], dst)
+        elif m["kind"] in ("ro", "rw"):
+            bind(m["src"], dst, readonly=m["kind"] == "ro")
         elif m["kind"] == "symlink":
             os.symlink(m["src"], dst)
         elif m["kind"] == "tmpfs":

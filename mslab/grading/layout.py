@@ -9,7 +9,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from mslab.grading.intake import LAYOUTS, Submission, class_entry, notebook_code, read_path, zip_files
+from mslab.grading.intake import LAYOUTS, Submission, class_entry, notebook_code, read_path
 from mslab.grading.report import printable
 
 BEGIN, END = "# BEGIN SOLUTION", "# END SOLUTION"
@@ -159,8 +159,10 @@ def read_student_file(submission: Submission, exercise: Exercise) -> tuple[str |
     """Return the student's source for an exercise and ``""``, or None and why it was not read.
 
     Read once, without following any symbolic link (:func:`mslab.grading.intake.read_path`);
-    a notebook counts by its code cells. A flat submission (the file at the top, as the
-    platforms hand it over) counts when the exercise's folder is absent.
+    a zip's files are those its sandbox unpacked (``submission.files``, set by the grader with
+    :func:`mslab.grading.unpack.unpack_zip`); a notebook counts by its code cells. A flat
+    submission (the file at the top, as the platforms hand it over) counts when the
+    exercise's folder is absent.
     """
     if submission.refusal:
         return None, submission.refusal
@@ -168,9 +170,9 @@ def read_student_file(submission: Submission, exercise: Exercise) -> tuple[str |
         data, why = read_path(submission.path.parent, [submission.path.name])
         return _decode(data, why, submission.path.name, exercise)
     if submission.kind == "zip":
-        files, why = zip_files(submission.path)
+        files = submission.files
         if files is None:
-            return None, why
+            return None, f"{submission.path.name}: not unpacked (mslab.grading.unpack.unpack_zip)"
         for parts in _candidates(exercise, exercise.name not in {n.split("/")[0] for n in files}):
             if "/".join(parts) in files:
                 return _decode(files["/".join(parts)], "", parts[-1], exercise)

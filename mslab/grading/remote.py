@@ -115,7 +115,7 @@ def _limits(memory_mb: int, cpu_s: int, file_mb: int, mode: str = "rlimits", box
                 pass
             if os.geteuid() == 0:  # counts the fresh uid's processes only
                 resource.setrlimit(resource.RLIMIT_NPROC, (MAX_PROCESSES, MAX_PROCESSES))
-        if os.geteuid() != 0 and (box is None or not box.config):  # no cgroup: cap the user's count
+        if uid is None and os.geteuid() != 0 and (box is None or not box.config):  # no cgroup: cap the count
             cap = isolation.user_process_cap(MAX_PROCESSES)
             resource.setrlimit(resource.RLIMIT_NPROC, (cap, cap))
         mem = memory_mb * 1024 * 1024
