@@ -199,3 +199,14 @@ def test_the_runner_kills_the_orphans_it_adopts():
     proc = subprocess.run([sys.executable, "-c", REAPED], capture_output=True, text=True, timeout=120,
                           env=dict(os.environ, PYTHONPATH=str(ROOT)))
     assert proc.stdout.split() == ["True", "False"], proc.stdout + proc.stderr
+
+
+def test_students_share_one_uids_process_limit_only_one_at_a_time():
+    """rlimits as a user without cgroups: one student at a time (a fork bomb beside an honest
+    classmate starved it: 13 of 15 in the hostile class, intermittently); elsewhere ``--jobs``."""
+    from mslab.grading.autograde import parallel_jobs
+
+    assert parallel_jobs(4, "rlimits", None, euid=1000) == 1
+    assert parallel_jobs(4, "rlimits", object(), euid=1000) == 4  # a cgroup per sandbox caps its pids
+    assert parallel_jobs(4, "rlimits", None, euid=0) == 4  # a throwaway uid per sandbox
+    assert parallel_jobs(4, "bwrap", None, euid=1000) == 4

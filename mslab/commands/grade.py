@@ -120,7 +120,8 @@ def _warn_isolation(result: SubmissionResult) -> None:
         who = ("as a throwaway uid, in your file system with per-process limits only (no namespaces: "
                "it can read what other users may read and share /tmp with classmates)" if os.geteuid() == 0
                else "as your user, in your file system with per-process limits only (no namespaces: it can "
-               "read what your user can read, the hidden tests and classmates' files included)")
+               "read what your user can read, the hidden tests and classmates' files included; without a "
+               "cgroup per sandbox, one student at a time, as they share your user's process limit)")
         print(f"mslab: warning: isolation is rlimits ({why}): student code ran {who}; use "
               "--require-isolation to refuse", file=sys.stderr)
     elif result.resources.startswith("no cgroup"):

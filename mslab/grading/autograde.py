@@ -194,6 +194,20 @@ def _run_chunk(items: list[dict], ctx: dict, on_item: Callable[[str, dict | None
         pending = rest[1:]
 
 
+def parallel_jobs(jobs: int, mode: str, cgroups: object, euid: int) -> int:
+    """How many students are graded at once: ``jobs``, or 1 where their sandboxes share one uid's limits.
+
+    In rlimits mode without root every sandbox runs as the grader's own uid, and without a
+    cgroup per sandbox the only cap on processes is ``RLIMIT_NPROC``, which counts every
+    process of that uid: a fork bomb beside an honest classmate would starve the classmate's
+    sandbox (a thread or a child it cannot start). Graded one at a time, each student's
+    processes are killed before the next one starts.
+    """
+    if mode == "rlimits" and euid != 0 and cgroups is None:
+        return 1
+    return jobs
+
+
 def grade(paths: Iterable[str | Path], source: str | Path, jobs: int | None = None, timeout: float = 10.0,
           memory_mb: int = 1024, only: list[str] | None = None, isolation: str = "auto",
           require_isolation: bool = False, journal: str | Path | Journal | None = None, resume: bool = False,
@@ -250,6 +264,7 @@ def grade(paths: Iterable[str | Path], source: str | Path, jobs: int | None = No
         if require_isolation and cgroups is None:
             raise ValueError(f"isolation required, but no cgroup can cap each sandbox's processes, memory "
                              f"and CPU share here ({why_not})")
+        jobs = parallel_jobs(jobs, mode, cgroups, os.geteuid())
         ctx = {"timeout": timeout, "memory_mb": memory_mb, "mode": mode, "cgroups": cgroups,
                "home": str(owned.folder), "asked": isolation, "why_not": why_not}
         paths = list(paths)
