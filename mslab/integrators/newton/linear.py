@@ -13,7 +13,14 @@ stable step and the step is a minimisation.
 
 **Factorisation**: :class:`~mslab.integrators.newton.factor.Factor` (dense LAPACK for small
 systems, CHOLMOD on the kept pattern, SuperLU's symmetric mode or partial pivoting for an
-indefinite matrix).
+indefinite matrix). With ``precision="mixed"`` (above :data:`DENSE_MAX` unknowns, symmetric
+``A``, factors kept) a fresh factorisation is a float32 supernodal Cholesky
+(:mod:`mslab.integrators.newton.mixed`) and the direction is found by CG in float64 on ``A``
+preconditioned with it (a relative residual of ``min(rtol, 1e-6)``, 1e-12 for an exact
+direction; one or two iterations); modified Newton steps and CG with kept factors apply the
+float32 factors where they applied float64 ones. A float32 factorisation that meets a pivot
+that is not positive, or a CG that does not converge with it, falls back to the float64
+:class:`Factor` for that matrix.
 
 **Reuse** (:class:`StageSolver`): a factorisation is kept between Newton iterations and
 steps. Each iteration takes (1) a *modified Newton* step with the kept factors (no
@@ -40,10 +47,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from mslab.integrators.newton.factor import DENSE_MAX, Factor
-from mslab.integrators.newton.newton_matrix import FreePattern
+from mslab.integrators.newton.newton_matrix import FreePattern, cholmod_module
 from mslab.integrators.newton.pcg import pcg
 
-__all__ = ["DENSE_MAX", "FACTOR_OVER_SOLVE", "POLICIES", "Factor", "StageSolver", "forget", "stage_solver"]
+__all__ = ["DENSE_MAX", "FACTOR_OVER_SOLVE", "POLICIES", "PRECISIONS", "Factor", "StageSolver", "forget",
+           "stage_solver"]
 
 if TYPE_CHECKING:  # scipy is imported on first use: `import mslab` stays cheap
     import scipy.sparse as sp
@@ -53,6 +61,9 @@ if TYPE_CHECKING:  # scipy is imported on first use: `import mslab` stays cheap
 #: reuse policies: "fresh" factors every Newton matrix (the textbook method), "reuse" keeps
 #: factorisations (see StageSolver), "auto" reuses above DENSE_MAX unknowns only
 POLICIES = ("auto", "fresh", "reuse")
+#: precisions of the kept factorisations: "mixed" (float32 factors preconditioning CG in float64,
+#: where factors are kept and the matrix is sparse and symmetric) or "double" (float64 factors)
+PRECISIONS = ("mixed", "double")
 #: The cost of a factorisation (with the Newton matrix's assembly) in solves with its factors,
 #: for the choice between a modified Newton step, CG and a fresh factorisation. Measured on
 #: this machine's 100 x 100 cloth with the symbolic analysis kept: CHOLMOD's numeric
@@ -74,6 +85,9 @@ class StageSolver:
     clamp : bool
         Newton's matrix with every spring's compressive term dropped (positive definite;
         the compiled path only, see :mod:`mslab.fast.newton_assembly`).
+    precision : {"mixed", "double"}
+        Fresh factorisations in float32 preconditioning CG in float64 (module docstring), or in
+        float64.
 
     ``direction(point, r, jacobian)`` returns the Newton direction ``du`` (all dofs) for the
     residual ``r`` at ``point = (X, V)``; the solver picks modified Newton, CG with the kept
@@ -107,9 +121,12 @@ class StageSolver:
     #: 70 x 70 cloth at dt = 1/60 (rates 0.08, 0.3, 0.65 at changes 3e-4, 1e-3, 2e-2)
     cg_rate_per_change: float = 600.0
 
-    def __init__(self, system: System, c: float, policy: str = "auto", clamp: bool = False):
+    def __init__(self, system: System, c: float, policy: str = "auto", clamp: bool = False,
+                 precision: str = "mixed"):
         if policy not in POLICIES:
             raise ValueError(f"linear solver policy must be one of {POLICIES}, got {policy!r}")
+        if precision not in PRECISIONS:
+            raise ValueError(f"factor precision must be one of {PRECISIONS}, got {precision!r}")
         self.system = system
         self.c = float(c)
         self.free = np.repeat(~system.pinned, system.dim)
@@ -118,6 +135,9 @@ class StageSolver:
         self.pattern: FreePattern | None = None  # of the last Newton matrix
         n_free = int(np.count_nonzero(self.free))
         self.reuse = policy == "reuse" or (policy == "auto" and n_free > DENSE_MAX)
+        # float32 factors: sparse (above DENSE_MAX), kept, and AMD from cvxopt for the analysis
+        self.mixed = (precision == "mixed" and self.reuse and n_free > DENSE_MAX
+                      and cholmod_module() is not None)
         self.factor: Factor | None = None
         self.rho = np.inf  # contraction of the last modified (or freshly factored) Newton step
         # the model's beta for factors of this stage (True) and of an earlier one (False)
@@ -239,8 +259,8 @@ class StageSolver:
                 self.last = "modified"
                 return self.expand(f.solve(b), r)
         A = self._assemble(point, r)
+        rtol = 1e-12 if exact else (self.cg_rtol if rtol is None else max(rtol, 1e-12))
         if self.reuse and f is not None and f.definite:
-            rtol = 1e-12 if exact else (self.cg_rtol if rtol is None else max(rtol, 1e-12))
             change = self.change(A)
             if self.predicted_cg_iterations(change, rtol) <= self.cg_max_iter():
                 x, its, ratio = pcg(A, b, f, rtol, self.cg_max_iter())
@@ -250,12 +270,40 @@ class StageSolver:
                 if x is not None:
                     self.last = "cg"
                     return self.expand(x, r)
+        self.last = "factor"
+        if self.mixed:
+            x = self._mixed_direction(A, b, rtol)
+            if x is not None:
+                return self.expand(x, r)
         self.factor = Factor(A, c, definite_only, pattern=self.pattern, symmetric=self.symmetric)
         self.factor.stage = self.stage
-        self.last = "factor"
         if self.factor.kind == "none":
             return None
         return self.expand(self.factor.solve(b), r)
+
+    def _mixed_direction(self, A: sp.csr_matrix, b: np.ndarray, rtol: float) -> np.ndarray | None:
+        """Return ``A^-1 b`` by CG preconditioned with a fresh float32 factor (kept), or None.
+
+        None (and nothing kept) when ``A`` is not symmetric, the float32 factorisation meets a
+        pivot that is not positive, or CG does not reach ``min(rtol, FRESH_RTOL)`` within
+        ``FRESH_MAX_ITER`` iterations: the caller factors in float64.
+        """
+        from mslab.integrators.newton.mixed import FRESH_MAX_ITER, FRESH_RTOL, mixed_factor
+
+        symmetric = self.symmetric if self.symmetric is not None else self.pattern.symmetric(A.data)
+        if not symmetric:
+            return None
+        c = self.system.counters
+        factor = mixed_factor(A, c, self.pattern, self.system.dim)
+        if factor is None:
+            return None
+        x, its, _ = pcg(A, b, factor, min(rtol, FRESH_RTOL), FRESH_MAX_ITER)
+        c.n_lin_iter += its
+        if x is None:
+            return None
+        factor.stage = self.stage
+        self.factor = factor
+        return x
 
     def shifted_direction(self, r: np.ndarray) -> np.ndarray:
         """Return a descent direction when ``A`` is indefinite: ``(A + mu M)^-1 (-M r)`` (Levenberg).
@@ -323,12 +371,13 @@ def forget(system: System) -> None:
     _CACHE.pop(system, None)
 
 
-def stage_solver(system: System, c: float, policy: str = "auto", clamp: bool = False) -> StageSolver:
-    """Return the kept :class:`StageSolver` of ``system`` for coefficient ``c``, ``policy`` and ``clamp``."""
+def stage_solver(system: System, c: float, policy: str = "auto", clamp: bool = False,
+                 precision: str = "mixed") -> StageSolver:
+    """Return the kept :class:`StageSolver` of ``system`` for ``c``, ``policy``, ``clamp``, ``precision``."""
     per_system = _CACHE.setdefault(system, {})
-    key = (float(c), policy, bool(clamp))
+    key = (float(c), policy, bool(clamp), precision)
     if key not in per_system:
         if len(per_system) > 8:
             per_system.clear()
-        per_system[key] = StageSolver(system, c, policy, clamp)
+        per_system[key] = StageSolver(system, c, policy, clamp, precision)
     return per_system[key]
