@@ -46,6 +46,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from mslab import jit
 from mslab.integrators.newton.factor import DENSE_MAX, Factor
 from mslab.integrators.newton.newton_matrix import FreePattern, cholmod_module
 from mslab.integrators.newton.pcg import pcg
@@ -135,9 +136,9 @@ class StageSolver:
         self.pattern: FreePattern | None = None  # of the last Newton matrix
         n_free = int(np.count_nonzero(self.free))
         self.reuse = policy == "reuse" or (policy == "auto" and n_free > DENSE_MAX)
-        # float32 factors: sparse (above DENSE_MAX), kept, and AMD from cvxopt for the analysis
+        # float32 factors: sparse (above DENSE_MAX), kept; AMD from cvxopt, the loops compiled by numba
         self.mixed = (precision == "mixed" and self.reuse and n_free > DENSE_MAX
-                      and cholmod_module() is not None)
+                      and cholmod_module() is not None and jit.available())
         self.factor: Factor | None = None
         self.rho = np.inf  # contraction of the last modified (or freshly factored) Newton step
         # the model's beta for factors of this stage (True) and of an earlier one (False)
