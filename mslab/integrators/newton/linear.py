@@ -16,8 +16,8 @@ systems, CHOLMOD on the kept pattern, SuperLU's symmetric mode or partial pivoti
 indefinite matrix). With ``precision="mixed"`` (above :data:`DENSE_MAX` unknowns, symmetric
 ``A``, factors kept) a fresh factorisation is a float32 supernodal Cholesky
 (:mod:`mslab.integrators.newton.mixed`) and the direction is found by CG in float64 on ``A``
-preconditioned with it (a relative residual of ``min(rtol, 1e-6)``, 1e-12 for an exact
-direction; one or two iterations); modified Newton steps and CG with kept factors apply the
+preconditioned with it (a relative residual of ``min(rtol, 1e-4)``, 1e-12 for an exact
+direction; mostly one iteration); modified Newton steps and CG with kept factors apply the
 float32 factors where they applied float64 ones. A float32 factorisation that meets a pivot
 that is not positive, or a CG that does not converge with it, falls back to the float64
 :class:`Factor` for that matrix.

@@ -54,9 +54,9 @@ if TYPE_CHECKING:
 
     from mslab.system import Counters
 
-#: the relative residual a fresh direction is solved to, at most (four decades: one or two CG
-#: iterations with the float32 factor)
-FRESH_RTOL = 1e-6
+#: the relative residual a fresh direction is solved to, at most (four decades: one CG iteration
+#: with the float32 factor on the cloth, whose one application leaves 1e-6 to 3e-6)
+FRESH_RTOL = 1e-4
 #: entries of the scaled factor (``max diag = 1``) below this are stored as zeros (subnormal
 #: float32 numbers are slow: :func:`~mslab.integrators.newton.mixed_kernels.mixed_factor_kernel`)
 TINY = np.float32(2.0 ** -50)
@@ -234,7 +234,7 @@ class MixedFactor:
         self.A, self.analysis, self.L, self.pattern, self.scale = A, analysis, L, pattern, scale
         n = analysis.perm.size
         self._work = np.empty(2 * n)
-        self._kernel = compiled(mixed_solve_kernel, "the solves with the float32 factor")
+        self._kernel = compiled(mixed_solve_kernel, "the solves with the float32 factor", fastmath=True)
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         """Return ``P^T (L L^T)^-1 P b`` (float64 arithmetic, float32 factor; timed)."""

@@ -19,9 +19,11 @@ in as function pointers so that numba can cache the loop. Everything runs on one
 fixed order (BLAS limited to one thread by the caller): the same bits on every run.
 
 The solves read the float32 factor and compute in float64 (``x = P^T L^-T L^-1 P b``): the
-preconditioner's only error is the factor's rounding. The sums of the backward solve
-run in four lanes (``i mod 4``) added in a fixed order (no fast-math: the same bits on any machine with
-the same instruction set).
+preconditioner's only error is the factor's rounding. They are compiled with fast-math (the
+backward solve's sums vectorised, products and sums fused; the loops hold no comparison a
+NaN could mislead, and a NaN still reaches CG, which then stops): the order is fixed by the
+compiled code, so the bits are the same on every run and thread count on one machine (as
+BLAS's, they may differ between processors of other SIMD widths).
 """
 
 from __future__ import annotations
@@ -60,9 +62,9 @@ def mixed_factor_kernel(data: np.ndarray, scale: float, tiny: float, a_ptr: np.n
     top = 0
     for s in range(sn.shape[0]):
         k, m = sn[s, 1], sn[s, 2]
-        size = m * m
-        for i in range(size):
-            front[i] = 0.0
+        for j in range(m):  # the lower triangle: nothing reads the upper one
+            for i in range(j * m + j, j * m + m):
+                front[i] = 0.0
         for t in range(a_ptr[s], a_ptr[s + 1]):
             front[a_pos[t]] += data[a_slot[t]] * scale
         for q in range(child_ptr[s + 1] - 1, child_ptr[s] - 1, -1):  # the last child's update is on top
@@ -151,36 +153,12 @@ def mixed_solve_kernel(b: np.ndarray, scale: float, perm: np.ndarray, sn: np.nda
         g = y[n:n + below]
         for i in range(below):
             g[i] = y[rows[r0 + i]]
-        j = 0
-        while j + 2 <= k:  # two columns at a time, four lanes each (i mod 4): SIMD without reordering
+        for j in range(k):
             c0 = start + j * m + k
-            c1 = c0 + m
-            a0 = a1 = a2 = a3 = b0 = b1 = b2 = b3 = 0.0
-            i = 0
-            while i + 4 <= below:
-                g0, g1, g2, g3 = g[i], g[i + 1], g[i + 2], g[i + 3]
-                a0 += L[c0 + i] * g0
-                a1 += L[c0 + i + 1] * g1
-                a2 += L[c0 + i + 2] * g2
-                a3 += L[c0 + i + 3] * g3
-                b0 += L[c1 + i] * g0
-                b1 += L[c1 + i + 1] * g1
-                b2 += L[c1 + i + 2] * g2
-                b3 += L[c1 + i + 3] * g3
-                i += 4
-            while i < below:
-                a0 += L[c0 + i] * g[i]
-                b0 += L[c1 + i] * g[i]
-                i += 1
-            y[f + j] -= (a0 + a1) + (a2 + a3)
-            y[f + j + 1] -= (b0 + b1) + (b2 + b3)
-            j += 2
-        if j < k:
-            c0 = start + j * m + k
-            a0 = 0.0
-            for i in range(below):
-                a0 += L[c0 + i] * g[i]
-            y[f + j] -= a0
+            dot = 0.0
+            for i in range(below):  # a sum numba vectorises (compiled with fast-math)
+                dot += L[c0 + i] * g[i]
+            y[f + j] -= dot
         for j in range(k - 1, -1, -1):
             col = start + j * m
             yj = y[f + j]
