@@ -22,6 +22,12 @@ from mslab.system import Counters
 DT = 1 / 60
 
 
+@pytest.fixture(autouse=True)
+def small_mixed(monkeypatch):
+    """The float32 path on small cloths too (by default it starts at MIXED_MIN unknowns)."""
+    monkeypatch.setattr(linear, "MIXED_MIN", linear.DENSE_MAX)
+
+
 def newton_matrix(n: int = 14, steps: int = 1):
     """A cloth's Newton matrix (free dofs, on its kept pattern) after ``steps`` implicit Euler steps."""
     scene = scaled_cloth(n, drag_rate=1.0)
@@ -146,6 +152,15 @@ def test_same_bits_on_reruns_and_thread_counts():
     for a, b, c in zip(one, two, again, strict=True):
         assert np.array_equal(a.x, b.x) and np.array_equal(a.v, b.v)
         assert np.array_equal(a.x, c.x) and np.array_equal(a.v, c.v)
+
+
+def test_below_mixed_min_the_float64_path_runs_unchanged(monkeypatch):
+    monkeypatch.setattr(linear, "MIXED_MIN", 10_000)
+    _, states, kinds = trajectory("mixed")
+    _, double_states, _ = trajectory("double")
+    assert kinds == {"cholmod"}
+    for a, b in zip(states, double_states, strict=True):
+        assert np.array_equal(a.x, b.x)
 
 
 def test_factor_precision_is_validated():

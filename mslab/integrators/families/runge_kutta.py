@@ -196,9 +196,10 @@ class ImplicitRK(_RungeKutta):
     the same solution (the residual stays exact), but linear convergence where springs are
     compressed: measured 2.4-2.5x slower than ``"exact"`` on a 70x70 cloth at dt = 1/60, and it
     did not converge in 4 of 6 steps at dt = 1/30 (``benchmarks/RESULTS.md``).
-    ``factor_precision="mixed"`` (default) factors large sparse Newton matrices in float32 and
-    solves in float64 by CG preconditioned with those factors, ``"double"`` factors in float64
-    (:mod:`mslab.integrators.newton.mixed`); the same roots to Newton's tolerance.
+    ``factor_precision="mixed"`` (default) factors Newton matrices of more than 10 000 unknowns
+    in float32 and solves in float64 by CG preconditioned with those factors, ``"double"``
+    factors in float64 (:mod:`mslab.integrators.newton.mixed`); the same roots to Newton's
+    tolerance.
 
     Cost per step: Newton — per iteration one force evaluation, one Jacobian and one linear
     solve per stage, plus the evaluations of the residual; fixed point — ``s`` evaluations

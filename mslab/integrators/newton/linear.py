@@ -13,7 +13,7 @@ stable step and the step is a minimisation.
 
 **Factorisation**: :class:`~mslab.integrators.newton.factor.Factor` (dense LAPACK for small
 systems, CHOLMOD on the kept pattern, SuperLU's symmetric mode or partial pivoting for an
-indefinite matrix). With ``precision="mixed"`` (above :data:`DENSE_MAX` unknowns, symmetric
+indefinite matrix). With ``precision="mixed"`` (above :data:`MIXED_MIN` unknowns, symmetric
 ``A``, factors kept) a fresh factorisation is a float32 supernodal Cholesky
 (:mod:`mslab.integrators.newton.mixed`) and the direction is found by CG in float64 on ``A``
 preconditioned with it (a relative residual of ``min(rtol, 1e-4)``, 1e-12 for an exact
@@ -51,8 +51,8 @@ from mslab.integrators.newton.factor import DENSE_MAX, Factor
 from mslab.integrators.newton.newton_matrix import FreePattern, cholmod_module
 from mslab.integrators.newton.pcg import pcg
 
-__all__ = ["DENSE_MAX", "FACTOR_OVER_SOLVE", "POLICIES", "PRECISIONS", "Factor", "StageSolver", "forget",
-           "stage_solver"]
+__all__ = ["DENSE_MAX", "FACTOR_OVER_SOLVE", "MIXED_MIN", "POLICIES", "PRECISIONS", "Factor", "StageSolver",
+           "forget", "stage_solver"]
 
 if TYPE_CHECKING:  # scipy is imported on first use: `import mslab` stays cheap
     import scipy.sparse as sp
@@ -63,8 +63,12 @@ if TYPE_CHECKING:  # scipy is imported on first use: `import mslab` stays cheap
 #: factorisations (see StageSolver), "auto" reuses above DENSE_MAX unknowns only
 POLICIES = ("auto", "fresh", "reuse")
 #: precisions of the kept factorisations: "mixed" (float32 factors preconditioning CG in float64,
-#: where factors are kept and the matrix is sparse and symmetric) or "double" (float64 factors)
+#: where factors are kept and the matrix is large, sparse and symmetric) or "double" (float64 factors)
 PRECISIONS = ("mixed", "double")
+#: "mixed" factors in float32 above this many unknowns only: below, CHOLMOD's float64 factorisation
+#: costs little against the solves (0.7 ms at 426 unknowns) and the float32 path's extra CG
+#: iterations do not pay (measured on cloths in benchmarks/RESULTS.md, issue 38 item 4)
+MIXED_MIN = 10_000
 #: The cost of a factorisation (with the Newton matrix's assembly) in solves with its factors,
 #: for the choice between a modified Newton step, CG and a fresh factorisation. Measured on
 #: this machine's 100 x 100 cloth with the symbolic analysis kept: CHOLMOD's numeric
@@ -136,8 +140,8 @@ class StageSolver:
         self.pattern: FreePattern | None = None  # of the last Newton matrix
         n_free = int(np.count_nonzero(self.free))
         self.reuse = policy == "reuse" or (policy == "auto" and n_free > DENSE_MAX)
-        # float32 factors: sparse (above DENSE_MAX), kept; AMD from cvxopt, the loops compiled by numba
-        self.mixed = (precision == "mixed" and self.reuse and n_free > DENSE_MAX
+        # float32 factors: large (above MIXED_MIN), kept; AMD from cvxopt, the loops compiled by numba
+        self.mixed = (precision == "mixed" and self.reuse and n_free > max(MIXED_MIN, DENSE_MAX)
                       and cholmod_module() is not None and jit.available())
         self.factor: Factor | None = None
         self.rho = np.inf  # contraction of the last modified (or freshly factored) Newton step

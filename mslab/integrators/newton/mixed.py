@@ -137,6 +137,7 @@ class MixedAnalysis:
         self._supernodes(parent, count, sptr, sidx, supernodes(parent, count, d), d, nodes)
         self.perm = (order[:, None] * d + np.arange(d)).ravel().astype(np.int64)
         self._entries(indptr, indices, n)
+        self.scratch: tuple | None = None  # (front, stack) of the numeric factorisation, made on first use
         self.seconds = time.perf_counter() - start
 
     @staticmethod
@@ -268,8 +269,9 @@ def mixed_factor(A: sp.csr_matrix, counters: Counters, pattern: Any = None,
     counters.n_factor += 1
     a = analysis_of(pattern, A, dim)
     L = np.empty(a.l_size, np.float32)
-    front = np.empty(max(a.front_size, 1), np.float32)
-    stack = np.empty(max(a.stack_size, 1), np.float32)
+    if a.scratch is None:  # the front and the update stack: work space kept with the analysis
+        a.scratch = (np.empty(max(a.front_size, 1), np.float32), np.empty(max(a.stack_size, 1), np.float32))
+    front, stack = a.scratch
     kernel = compiled(mixed_factor_kernel, "the float32 supernodal factorisation")
     top = float(np.max(A.diagonal())) if A.shape[0] else 1.0
     if not top > 0.0:
