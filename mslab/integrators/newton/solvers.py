@@ -163,8 +163,7 @@ def _plain_stage(system: System, xh: np.ndarray, vh: np.ndarray, c: float, tol: 
     matrix when Newton's direction does not descend); otherwise full steps for ``full_steps``
     iterations, then backtracking on the residual.
     ``linearised``: one Newton step from ``V = v^`` and no convergence test (Baraff-Witkin).
-    ``hessian``: ``"exact"`` or ``"clamped"`` (``ImplicitRK``'s ``newton_hessian``); ``precision``:
-    of the kept factorisations (``ImplicitRK``'s ``factor_precision``). After
+    ``hessian``, ``precision``: ``ImplicitRK``'s ``newton_hessian`` and ``factor_precision``. After
     :data:`STALLED` crawling shifted steps, Newton's own step of the indefinite matrix (a saddle
     root). CG on kept factors solves to ``min(cg_rtol_max, 0.9 (|r_k| / |r_k-1|)^2)``.
 
