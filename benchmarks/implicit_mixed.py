@@ -19,7 +19,8 @@ summed. Codes:
 
 Also, on one Newton matrix of each cloth: the float32 factorisation against CHOLMOD's numeric
 factorisation (kept analysis) and their solves, interleaved. Results in
-``benchmarks/implicit_mixed.json`` with the machine and its load. Nothing here is a test.
+``benchmarks/implicit_mixed.json`` (``runs``, by cloth size) with the machine and its load.
+Nothing here is a test.
 """
 
 from __future__ import annotations
@@ -171,8 +172,11 @@ def main() -> None:
         out["steps"].append(steps_vs_references(n, 2 if args.quick else args.steps))
         print(json.dumps(out["steps"][-1], indent=1), flush=True)
     out["machine_end"] = machine()
-    if not args.quick:
-        (HERE / "implicit_mixed.json").write_text(json.dumps(out, indent=1) + "\n")
+    if not args.quick:  # one entry per cloth size; a run replaces the entries of its sizes only
+        path = HERE / "implicit_mixed.json"
+        kept = json.loads(path.read_text()).get("runs", {}) if path.exists() else {}
+        kept.update({str(n): out for n in sizes})
+        path.write_text(json.dumps({"runs": kept}, indent=1) + "\n")
 
 
 if __name__ == "__main__":
