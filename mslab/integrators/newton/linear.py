@@ -26,7 +26,8 @@ that is not positive, or a CG that does not converge with it, falls back to the 
 steps. Each iteration takes (1) a *modified Newton* step with the kept factors (no
 Jacobian, one solve) when the contraction measured on the last such step predicts that the
 remaining modified steps cost less than a fresh factorisation (both counted in solves, with
-the fixed ratio :data:`FACTOR_OVER_SOLVE`: never a timing, so a run is reproducible),
+the fixed ratio :data:`FACTOR_OVER_SOLVE`, :data:`MIXED_FACTOR_OVER_SOLVE` for float32 factors:
+never a timing, so a run is reproducible),
 else (2) an inexact Newton step by conjugate gradients on the current ``A`` preconditioned
 with the kept factors, when a convergence model (:class:`StageSolver`) predicts that CG
 converges within its budget (no solve is spent on a CG that will fail), else (3) a fresh
@@ -51,8 +52,8 @@ from mslab.integrators.newton.factor import DENSE_MAX, Factor
 from mslab.integrators.newton.newton_matrix import FreePattern, cholmod_module
 from mslab.integrators.newton.pcg import pcg
 
-__all__ = ["DENSE_MAX", "FACTOR_OVER_SOLVE", "MIXED_MIN", "POLICIES", "PRECISIONS", "Factor", "StageSolver",
-           "forget", "stage_solver"]
+__all__ = ["DENSE_MAX", "FACTOR_OVER_SOLVE", "MIXED_FACTOR_OVER_SOLVE", "MIXED_MIN", "POLICIES", "PRECISIONS",
+           "Factor", "StageSolver", "forget", "stage_solver"]
 
 if TYPE_CHECKING:  # scipy is imported on first use: `import mslab` stays cheap
     import scipy.sparse as sp
@@ -76,6 +77,10 @@ MIXED_MIN = 10_000
 #: smaller cloths have larger ratios but cost little either way. A fixed ratio, not a
 #: timing: the same run always takes the same steps, counts and results.
 FACTOR_OVER_SOLVE = 12.0
+#: the same ratio for float32 factors: half a CHOLMOD factorisation's time, solves as costly
+#: (measured 2.0-2.6x and 0.97-1.07x); on the 70 x 70 cloth 16 factorisations and 78 solves in 5
+#: steps against 12 and 129 with the float64 ratio, 1.11x faster (benchmarks/RESULTS.md)
+MIXED_FACTOR_OVER_SOLVE = 6.0
 
 
 class StageSolver:
@@ -143,6 +148,7 @@ class StageSolver:
         # float32 factors: large (above MIXED_MIN), kept; AMD from cvxopt, the loops compiled by numba
         self.mixed = (precision == "mixed" and self.reuse and n_free > max(MIXED_MIN, DENSE_MAX)
                       and cholmod_module() is not None and jit.available())
+        self.factor_over_solve = MIXED_FACTOR_OVER_SOLVE if self.mixed else FACTOR_OVER_SOLVE
         self.factor: Factor | None = None
         self.rho = np.inf  # contraction of the last modified (or freshly factored) Newton step
         # the model's beta for factors of this stage (True) and of an earlier one (False)
@@ -183,9 +189,9 @@ class StageSolver:
         return A
 
     def cg_max_iter(self) -> int:
-        """Return the CG iterations worth half a fresh factorisation (:data:`FACTOR_OVER_SOLVE`)."""
+        """Return the CG iterations worth half a fresh factorisation (:attr:`factor_over_solve` solves)."""
         low, high = self.cg_iter_bounds
-        return int(np.clip(0.5 * FACTOR_OVER_SOLVE, low, high))
+        return int(np.clip(0.5 * self.factor_over_solve, low, high))
 
     def change(self, A: sp.spmatrix) -> float:
         """Return ``|A - A_f|_F / |A_f|_F`` against the kept factors' matrix (inf: another pattern)."""
@@ -260,7 +266,7 @@ class StageSolver:
             # a modified step costs its solve plus about as much for the residual and line search
             # (in units of one solve; a fixed ratio, never a timing, keeps runs reproducible)
             modified_cost = decades / np.log10(1.0 / self.rho) * 2.0
-            if modified_cost <= FACTOR_OVER_SOLVE + 3.0:
+            if modified_cost <= self.factor_over_solve + 3.0:
                 self.last = "modified"
                 return self.expand(f.solve(b), r)
         A = self._assemble(point, r)
