@@ -98,6 +98,7 @@ def test_the_float64_factor_takes_over_when_float32_fails(monkeypatch, failure):
     elif failure == "cg_stalls":  # a useless preconditioner: CG cannot reach its tolerance in time
         monkeypatch.setattr(mixed.MixedFactor, "solve", lambda self, b: np.asarray(b, dtype=float).copy())
     monkeypatch.setattr(solver, "_assemble", lambda point, r: A)
+    mixed.analysis_of(solver.pattern, A, 3)  # a pattern met before
     r = np.random.default_rng(4).standard_normal(solver.free.size)
     du = solver.direction(None, r, exact=True)
     assert solver.factor.kind == ("mixed32" if failure is None else "cholmod")
@@ -114,6 +115,18 @@ def trajectory(precision: str, steps: int = 3, n: int = 14) -> tuple:
         states.append(ie.step(system, states[-1], DT))
     kinds = {s.factor.kind for s in linear._CACHE[system].values() if s.factor is not None}
     return system, states, kinds
+
+
+def test_a_pattern_met_once_is_factored_in_float64(monkeypatch):
+    """The float32 analysis is made for a pattern factored a second time, not for one met once."""
+    solver, A = newton_matrix()
+    monkeypatch.setattr(solver, "_assemble", lambda point, r: A)
+    r = np.random.default_rng(5).standard_normal(solver.free.size)
+    solver.direction(None, r, exact=True)
+    assert solver.factor.kind == "cholmod" and getattr(solver.pattern, "mixed", None) is None
+    solver.factor = None  # (no kept factors: the next direction factors afresh)
+    solver.direction(None, r, exact=True)
+    assert solver.factor.kind == "mixed32"
 
 
 def test_newton_finds_the_same_root_with_mixed_and_double_factors():

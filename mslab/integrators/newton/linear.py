@@ -13,14 +13,13 @@ stable step and the step is a minimisation.
 
 **Factorisation**: :class:`~mslab.integrators.newton.factor.Factor` (dense LAPACK for small
 systems, CHOLMOD on the kept pattern, SuperLU's symmetric mode or partial pivoting for an
-indefinite matrix). With ``precision="mixed"`` (above :data:`MIXED_MIN` unknowns, symmetric
-``A``, factors kept) a fresh factorisation is a float32 supernodal Cholesky
-(:mod:`mslab.integrators.newton.mixed`) and the direction is found by CG in float64 on ``A``
-preconditioned with it (a relative residual of ``min(rtol, 1e-4)``, 1e-12 for an exact
-direction; mostly one iteration); modified Newton steps and CG with kept factors apply the
-float32 factors where they applied float64 ones. A float32 factorisation that meets a pivot
-that is not positive, or a CG that does not converge with it, falls back to the float64
-:class:`Factor` for that matrix.
+indefinite matrix). With ``precision="mixed"`` (above :data:`MIXED_MIN` unknowns, symmetric ``A``,
+factors kept) a fresh factorisation is a float32 supernodal Cholesky (:mod:`~mslab.integrators.newton.mixed`)
+preconditioning CG in float64 on ``A`` (to ``min(rtol, 1e-4)``, 1e-12 for an exact direction: mostly
+one iteration); modified steps and CG with kept factors apply it as they apply float64 factors. A
+pattern's first matrix is factored in float64 (the float32 analysis costs 0.15 s at 70 x 70,
+CHOLMOD's 9 ms: a pattern changing at every iteration never pays it). When a float32 pivot is not
+positive or CG with it does not converge, the float64 :class:`Factor` takes over for that matrix.
 
 **Reuse** (:class:`StageSolver`): a factorisation is kept between Newton iterations and
 steps. Each iteration takes (1) a *modified Newton* step with the kept factors (no
@@ -149,6 +148,7 @@ class StageSolver:
         self.mixed = (precision == "mixed" and self.reuse and n_free > max(MIXED_MIN, DENSE_MAX)
                       and cholmod_module() is not None and jit.available())
         self.factor_over_solve = MIXED_FACTOR_OVER_SOLVE if self.mixed else FACTOR_OVER_SOLVE
+        self._factored: FreePattern | None = None  # the pattern of the last fresh factorisation
         self.factor: Factor | None = None
         self.rho = np.inf  # contraction of the last modified (or freshly factored) Newton step
         # the model's beta for factors of this stage (True) and of an earlier one (False)
@@ -282,7 +282,11 @@ class StageSolver:
                     self.last = "cg"
                     return self.expand(x, r)
         self.last = "factor"
-        if self.mixed:
+        # a pattern factored before (or analysed): its float32 analysis pays; one met once (contacts
+        # changing every iteration) is factored by CHOLMOD, whose analysis is cheaper
+        again = self.pattern is self._factored or getattr(self.pattern, "mixed", None) is not None
+        self._factored = self.pattern
+        if self.mixed and again:
             x = self._mixed_direction(A, b, rtol)
             if x is not None:
                 return self.expand(x, r)
