@@ -38,7 +38,7 @@ _FOLDER_OF = {"coefficients": "families", "polynomials": "families", "runge_kutt
               "local_step": "families", "local_global_loop": "families", "linear": "newton",
               "newton_matrix": "newton", "pcg": "newton", "factor": "newton", "coupled": "newton",
               "solvers": "newton", "tree_solve": "newton", "tree_kernels": "newton",
-              "damped": "newton"}
+              "damped": "newton", "mixed": "newton", "mixed_symbolic": "newton", "mixed_kernels": "newton"}
 
 
 def discover() -> list[str]:

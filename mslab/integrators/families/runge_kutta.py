@@ -196,6 +196,10 @@ class ImplicitRK(_RungeKutta):
     the same solution (the residual stays exact), but linear convergence where springs are
     compressed: measured 2.4-2.5x slower than ``"exact"`` on a 70x70 cloth at dt = 1/60, and it
     did not converge in 4 of 6 steps at dt = 1/30 (``benchmarks/RESULTS.md``).
+    ``factor_precision="mixed"`` (default) factors Newton matrices of more than 10 000 unknowns
+    in float32 and solves in float64 by CG preconditioned with those factors, ``"double"``
+    factors in float64 (:mod:`mslab.integrators.newton.mixed`); the same roots to Newton's
+    tolerance.
 
     Cost per step: Newton — per iteration one force evaluation, one Jacobian and one linear
     solve per stage, plus the evaluations of the residual; fixed point — ``s`` evaluations
@@ -211,6 +215,7 @@ class ImplicitRK(_RungeKutta):
     solver : {"newton", "fixed_point", "linearised"}
     linear_solver : {"auto", "fresh", "reuse"}
     newton_hessian : {"exact", "clamped"}
+    factor_precision : {"mixed", "double"}
     a_stable : bool, optional
         Declared A-stability (tested against ``R(z)``); default: measured on a grid.
     doc : str, optional
@@ -224,17 +229,20 @@ class ImplicitRK(_RungeKutta):
     def __init__(self, A: Iterable[Iterable[Any]], b: Iterable[Any], c: Iterable[Any] | None = None,
                  name: str = "implicit_rk", order: int = 0, solver: str = "newton",
                  symplectic: bool = False, doc: str | None = None, linear_solver: str = "auto",
-                 newton_hessian: str = "exact"):
+                 newton_hessian: str = "exact", factor_precision: str = "mixed"):
         super().__init__(A, b, c, name, order, doc)
         if solver not in ("newton", "fixed_point", "linearised"):
             raise ValueError(f"solver must be 'newton', 'fixed_point' or 'linearised', got {solver!r}")
-        from mslab.integrators.newton.linear import POLICIES
+        from mslab.integrators.newton.linear import POLICIES, PRECISIONS
 
         if linear_solver not in POLICIES:
             raise ValueError(f"linear_solver must be one of {POLICIES}, got {linear_solver!r}")
         if newton_hessian not in ("exact", "clamped"):
             raise ValueError(f"newton_hessian must be 'exact' or 'clamped', got {newton_hessian!r}")
+        if factor_precision not in PRECISIONS:
+            raise ValueError(f"factor_precision must be one of {PRECISIONS}, got {factor_precision!r}")
         self.newton_hessian = newton_hessian
+        self.factor_precision = factor_precision
         self.solver = solver
         self.linear_solver = linear_solver
         self.linearised = solver == "linearised"

@@ -23,7 +23,7 @@ DAMPED_ITER = 4
 
 
 def damped_stage(system: System, xh: np.ndarray, vh: np.ndarray, c: float, tol: float, max_iter: int,
-                  policy: str, hessian: str) -> tuple | None:
+                  policy: str, hessian: str, precision: str = "mixed") -> tuple | None:
     """Damped Newton on one stage: the point ``(X, V, a, power)`` at the root, None when it finds none.
 
     From ``V = v^``, each iteration takes the exact Newton direction ``du`` (the current
@@ -35,7 +35,7 @@ def damped_stage(system: System, xh: np.ndarray, vh: np.ndarray, c: float, tol: 
     """
     from mslab.integrators.newton import linear
 
-    solver = linear.stage_solver(system, c, policy, clamp=hessian == "clamped")
+    solver = linear.stage_solver(system, c, policy, clamp=hessian == "clamped", precision=precision)
     solver.start_stage()
 
     def residual(V: np.ndarray):

@@ -13,13 +13,20 @@ stable step and the step is a minimisation.
 
 **Factorisation**: :class:`~mslab.integrators.newton.factor.Factor` (dense LAPACK for small
 systems, CHOLMOD on the kept pattern, SuperLU's symmetric mode or partial pivoting for an
-indefinite matrix).
+indefinite matrix). With ``precision="mixed"`` (above :data:`MIXED_MIN` unknowns, symmetric ``A``,
+factors kept) a fresh factorisation is a float32 supernodal Cholesky (:mod:`~mslab.integrators.newton.mixed`)
+preconditioning CG in float64 on ``A`` (to ``min(rtol, 1e-4)``, 1e-12 for an exact direction: mostly
+one iteration); modified steps and CG with kept factors apply it as they apply float64 factors. A
+pattern's first matrix is factored in float64 (the float32 analysis costs 0.15 s at 70 x 70,
+CHOLMOD's 9 ms: a pattern changing at every iteration never pays it). When a float32 pivot is not
+positive or CG with it does not converge, the float64 :class:`Factor` takes over for that matrix.
 
 **Reuse** (:class:`StageSolver`): a factorisation is kept between Newton iterations and
 steps. Each iteration takes (1) a *modified Newton* step with the kept factors (no
 Jacobian, one solve) when the contraction measured on the last such step predicts that the
 remaining modified steps cost less than a fresh factorisation (both counted in solves, with
-the fixed ratio :data:`FACTOR_OVER_SOLVE`: never a timing, so a run is reproducible),
+the fixed ratio :data:`FACTOR_OVER_SOLVE`, :data:`MIXED_FACTOR_OVER_SOLVE` for float32 factors:
+never a timing, so a run is reproducible),
 else (2) an inexact Newton step by conjugate gradients on the current ``A`` preconditioned
 with the kept factors, when a convergence model (:class:`StageSolver`) predicts that CG
 converges within its budget (no solve is spent on a CG that will fail), else (3) a fresh
@@ -39,11 +46,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from mslab import jit
 from mslab.integrators.newton.factor import DENSE_MAX, Factor
-from mslab.integrators.newton.newton_matrix import FreePattern
+from mslab.integrators.newton.newton_matrix import FreePattern, cholmod_module
 from mslab.integrators.newton.pcg import pcg
 
-__all__ = ["DENSE_MAX", "FACTOR_OVER_SOLVE", "POLICIES", "Factor", "StageSolver", "forget", "stage_solver"]
+__all__ = ["DENSE_MAX", "FACTOR_OVER_SOLVE", "MIXED_FACTOR_OVER_SOLVE", "MIXED_MIN", "POLICIES", "PRECISIONS",
+           "Factor", "StageSolver", "forget", "stage_solver"]
 
 if TYPE_CHECKING:  # scipy is imported on first use: `import mslab` stays cheap
     import scipy.sparse as sp
@@ -53,6 +62,13 @@ if TYPE_CHECKING:  # scipy is imported on first use: `import mslab` stays cheap
 #: reuse policies: "fresh" factors every Newton matrix (the textbook method), "reuse" keeps
 #: factorisations (see StageSolver), "auto" reuses above DENSE_MAX unknowns only
 POLICIES = ("auto", "fresh", "reuse")
+#: precisions of the kept factorisations: "mixed" (float32 factors preconditioning CG in float64,
+#: where factors are kept and the matrix is large, sparse and symmetric) or "double" (float64 factors)
+PRECISIONS = ("mixed", "double")
+#: "mixed" factors in float32 above this many unknowns only: below, CHOLMOD's float64 factorisation
+#: costs little against the solves (0.7 ms at 426 unknowns) and the float32 path's extra CG
+#: iterations do not pay (measured on cloths in benchmarks/RESULTS.md, issue 38 item 4)
+MIXED_MIN = 10_000
 #: The cost of a factorisation (with the Newton matrix's assembly) in solves with its factors,
 #: for the choice between a modified Newton step, CG and a fresh factorisation. Measured on
 #: this machine's 100 x 100 cloth with the symbolic analysis kept: CHOLMOD's numeric
@@ -60,6 +76,10 @@ POLICIES = ("auto", "fresh", "reuse")
 #: smaller cloths have larger ratios but cost little either way. A fixed ratio, not a
 #: timing: the same run always takes the same steps, counts and results.
 FACTOR_OVER_SOLVE = 12.0
+#: the same ratio for float32 factors: half a CHOLMOD factorisation's time, solves as costly
+#: (measured 2.0-2.6x and 0.97-1.07x); on the 70 x 70 cloth 16 factorisations and 78 solves in 5
+#: steps against 12 and 129 with the float64 ratio, 1.11x faster (benchmarks/RESULTS.md)
+MIXED_FACTOR_OVER_SOLVE = 6.0
 
 
 class StageSolver:
@@ -74,6 +94,9 @@ class StageSolver:
     clamp : bool
         Newton's matrix with every spring's compressive term dropped (positive definite;
         the compiled path only, see :mod:`mslab.fast.newton_assembly`).
+    precision : {"mixed", "double"}
+        Fresh factorisations in float32 preconditioning CG in float64 (module docstring), or in
+        float64.
 
     ``direction(point, r, jacobian)`` returns the Newton direction ``du`` (all dofs) for the
     residual ``r`` at ``point = (X, V)``; the solver picks modified Newton, CG with the kept
@@ -107,9 +130,12 @@ class StageSolver:
     #: 70 x 70 cloth at dt = 1/60 (rates 0.08, 0.3, 0.65 at changes 3e-4, 1e-3, 2e-2)
     cg_rate_per_change: float = 600.0
 
-    def __init__(self, system: System, c: float, policy: str = "auto", clamp: bool = False):
+    def __init__(self, system: System, c: float, policy: str = "auto", clamp: bool = False,
+                 precision: str = "mixed"):
         if policy not in POLICIES:
             raise ValueError(f"linear solver policy must be one of {POLICIES}, got {policy!r}")
+        if precision not in PRECISIONS:
+            raise ValueError(f"factor precision must be one of {PRECISIONS}, got {precision!r}")
         self.system = system
         self.c = float(c)
         self.free = np.repeat(~system.pinned, system.dim)
@@ -118,6 +144,11 @@ class StageSolver:
         self.pattern: FreePattern | None = None  # of the last Newton matrix
         n_free = int(np.count_nonzero(self.free))
         self.reuse = policy == "reuse" or (policy == "auto" and n_free > DENSE_MAX)
+        # float32 factors: large (above MIXED_MIN), kept; AMD from cvxopt, the loops compiled by numba
+        self.mixed = (precision == "mixed" and self.reuse and n_free > max(MIXED_MIN, DENSE_MAX)
+                      and cholmod_module() is not None and jit.available())
+        self.factor_over_solve = MIXED_FACTOR_OVER_SOLVE if self.mixed else FACTOR_OVER_SOLVE
+        self._factored: FreePattern | None = None  # the pattern of the last fresh factorisation
         self.factor: Factor | None = None
         self.rho = np.inf  # contraction of the last modified (or freshly factored) Newton step
         # the model's beta for factors of this stage (True) and of an earlier one (False)
@@ -158,9 +189,9 @@ class StageSolver:
         return A
 
     def cg_max_iter(self) -> int:
-        """Return the CG iterations worth half a fresh factorisation (:data:`FACTOR_OVER_SOLVE`)."""
+        """Return the CG iterations worth half a fresh factorisation (:attr:`factor_over_solve` solves)."""
         low, high = self.cg_iter_bounds
-        return int(np.clip(0.5 * FACTOR_OVER_SOLVE, low, high))
+        return int(np.clip(0.5 * self.factor_over_solve, low, high))
 
     def change(self, A: sp.spmatrix) -> float:
         """Return ``|A - A_f|_F / |A_f|_F`` against the kept factors' matrix (inf: another pattern)."""
@@ -235,12 +266,12 @@ class StageSolver:
             # a modified step costs its solve plus about as much for the residual and line search
             # (in units of one solve; a fixed ratio, never a timing, keeps runs reproducible)
             modified_cost = decades / np.log10(1.0 / self.rho) * 2.0
-            if modified_cost <= FACTOR_OVER_SOLVE + 3.0:
+            if modified_cost <= self.factor_over_solve + 3.0:
                 self.last = "modified"
                 return self.expand(f.solve(b), r)
         A = self._assemble(point, r)
+        rtol = 1e-12 if exact else (self.cg_rtol if rtol is None else max(rtol, 1e-12))
         if self.reuse and f is not None and f.definite:
-            rtol = 1e-12 if exact else (self.cg_rtol if rtol is None else max(rtol, 1e-12))
             change = self.change(A)
             if self.predicted_cg_iterations(change, rtol) <= self.cg_max_iter():
                 x, its, ratio = pcg(A, b, f, rtol, self.cg_max_iter())
@@ -250,12 +281,44 @@ class StageSolver:
                 if x is not None:
                     self.last = "cg"
                     return self.expand(x, r)
+        self.last = "factor"
+        # a pattern factored before (or analysed): its float32 analysis pays; one met once (contacts
+        # changing every iteration) is factored by CHOLMOD, whose analysis is cheaper
+        again = self.pattern is self._factored or getattr(self.pattern, "mixed", None) is not None
+        self._factored = self.pattern
+        if self.mixed and again:
+            x = self._mixed_direction(A, b, rtol)
+            if x is not None:
+                return self.expand(x, r)
         self.factor = Factor(A, c, definite_only, pattern=self.pattern, symmetric=self.symmetric)
         self.factor.stage = self.stage
-        self.last = "factor"
         if self.factor.kind == "none":
             return None
         return self.expand(self.factor.solve(b), r)
+
+    def _mixed_direction(self, A: sp.csr_matrix, b: np.ndarray, rtol: float) -> np.ndarray | None:
+        """Return ``A^-1 b`` by CG preconditioned with a fresh float32 factor (kept), or None.
+
+        None (and nothing kept) when ``A`` is not symmetric, the float32 factorisation meets a
+        pivot that is not positive, or CG does not reach ``min(rtol, FRESH_RTOL)`` within
+        ``FRESH_MAX_ITER`` iterations: the caller factors in float64.
+        """
+        from mslab.integrators.newton.mixed import FRESH_MAX_ITER, FRESH_RTOL, mixed_factor
+
+        symmetric = self.symmetric if self.symmetric is not None else self.pattern.symmetric(A.data)
+        if not symmetric:
+            return None
+        c = self.system.counters
+        factor = mixed_factor(A, c, self.pattern, self.system.dim)
+        if factor is None:
+            return None
+        x, its, _ = pcg(A, b, factor, min(rtol, FRESH_RTOL), FRESH_MAX_ITER)
+        c.n_lin_iter += its
+        if x is None:
+            return None
+        factor.stage = self.stage
+        self.factor = factor
+        return x
 
     def shifted_direction(self, r: np.ndarray) -> np.ndarray:
         """Return a descent direction when ``A`` is indefinite: ``(A + mu M)^-1 (-M r)`` (Levenberg).
@@ -323,12 +386,13 @@ def forget(system: System) -> None:
     _CACHE.pop(system, None)
 
 
-def stage_solver(system: System, c: float, policy: str = "auto", clamp: bool = False) -> StageSolver:
-    """Return the kept :class:`StageSolver` of ``system`` for coefficient ``c``, ``policy`` and ``clamp``."""
+def stage_solver(system: System, c: float, policy: str = "auto", clamp: bool = False,
+                 precision: str = "mixed") -> StageSolver:
+    """Return the kept :class:`StageSolver` of ``system`` for ``c``, ``policy``, ``clamp``, ``precision``."""
     per_system = _CACHE.setdefault(system, {})
-    key = (float(c), policy, bool(clamp))
+    key = (float(c), policy, bool(clamp), precision)
     if key not in per_system:
         if len(per_system) > 8:
             per_system.clear()
-        per_system[key] = StageSolver(system, c, policy, clamp)
+        per_system[key] = StageSolver(system, c, policy, clamp, precision)
     return per_system[key]

@@ -116,7 +116,8 @@ def _newton_dirk(method: ImplicitRK, system: System, state: State, dt: float):
         X, V, a, p = newton_stage(system, xh, vh, dt * g, tol0, method.max_iter,
                                   policy=getattr(method, "linear_solver", "auto"),
                                   linearised=getattr(method, "linearised", False),
-                                  hessian=getattr(method, "newton_hessian", "exact"))
+                                  hessian=getattr(method, "newton_hessian", "exact"),
+                                  precision=getattr(method, "factor_precision", "mixed"))
         vs.append(V)
         accs.append(a)
         powers.append(p)
@@ -125,7 +126,8 @@ def _newton_dirk(method: ImplicitRK, system: System, state: State, dt: float):
 
 def newton_stage(system: System, xh: np.ndarray, vh: np.ndarray, c: float, tol: float, max_iter: int,
                  policy: str = "auto", linearised: bool = False, full_steps: int = 4,
-                 hessian: str = "exact") -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+                 hessian: str = "exact",
+                 precision: str = "mixed") -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """Solve one implicit Euler-like stage ``V - v^ - c a(x^ + c V, V) = 0`` by Newton's method.
 
     :func:`_plain_stage` first (below). When it fails on forces that derive from no objective
@@ -137,20 +139,22 @@ def newton_stage(system: System, xh: np.ndarray, vh: np.ndarray, c: float, tol: 
     Returns ``(X, V, a, power)``; raises the first attempt's StepFailure when both fail.
     """
     try:
-        return _plain_stage(system, xh, vh, c, tol, max_iter, policy, linearised, full_steps, hessian)
+        return _plain_stage(system, xh, vh, c, tol, max_iter, policy, linearised, full_steps, hessian,
+                            precision)
     except StepFailure:
         if linearised or variational(system):
             raise
         from mslab.integrators.newton.damped import DAMPED_ITER, damped_stage
 
-        point = damped_stage(system, xh, vh, c, tol, DAMPED_ITER * max_iter, policy, hessian)
+        point = damped_stage(system, xh, vh, c, tol, DAMPED_ITER * max_iter, policy, hessian, precision)
         if point is None:
             raise
         return point
 
 
 def _plain_stage(system: System, xh: np.ndarray, vh: np.ndarray, c: float, tol: float, max_iter: int,
-                 policy: str, linearised: bool, full_steps: int, hessian: str) -> tuple:
+                 policy: str, linearised: bool, full_steps: int, hessian: str,
+                 precision: str = "mixed") -> tuple:
     """Solve one stage by Newton's method with the globalisation described here.
 
     Directions from :class:`mslab.integrators.newton.linear.StageSolver` (factorisations kept
@@ -159,7 +163,7 @@ def _plain_stage(system: System, xh: np.ndarray, vh: np.ndarray, c: float, tol: 
     matrix when Newton's direction does not descend); otherwise full steps for ``full_steps``
     iterations, then backtracking on the residual.
     ``linearised``: one Newton step from ``V = v^`` and no convergence test (Baraff-Witkin).
-    ``hessian``: ``"exact"`` or ``"clamped"`` (``ImplicitRK``'s ``newton_hessian``). After
+    ``hessian``, ``precision``: ``ImplicitRK``'s ``newton_hessian`` and ``factor_precision``. After
     :data:`STALLED` crawling shifted steps, Newton's own step of the indefinite matrix (a saddle
     root). CG on kept factors solves to ``min(cg_rtol_max, 0.9 (|r_k| / |r_k-1|)^2)``.
 
@@ -170,7 +174,7 @@ def _plain_stage(system: System, xh: np.ndarray, vh: np.ndarray, c: float, tol: 
     counters = system.counters
     if hessian not in ("exact", "clamped"):
         raise ValueError(f"newton_hessian must be 'exact' or 'clamped', got {hessian!r}")
-    solver = linear.stage_solver(system, c, policy, clamp=hessian == "clamped")
+    solver = linear.stage_solver(system, c, policy, clamp=hessian == "clamped", precision=precision)
     var = variational(system)
 
     def residual(V: np.ndarray):
