@@ -109,10 +109,14 @@ def check_function(name: str, fn: Callable, *, reference: Callable, cases: Seque
 
 
 def check_prediction(guess: object, *, measured: str, choices: Sequence[str]) -> None:
-    """Print the measured outcome next to the student's prediction (one of ``choices``)."""
+    """Print the measured outcome next to the student's prediction (one of ``choices``).
+
+    Until the student has predicted (``guess`` is ``TODO``) the measured outcome is not shown: the
+    stored output a student opens must not answer the question a few lines above it.
+    """
     if _is_todo(guess):
         return _say(f"not done yet: write your prediction (one of {', '.join(map(repr, choices))}) "
-                    f"before running; measured: {measured}")
+                    "and run this cell again: the measured outcome is shown next to it")
     if str(guess).strip().lower() not in choices:
         return _say(f"not yet right: a prediction is one of {', '.join(map(repr, choices))}")
     if str(guess).strip().lower() == measured:

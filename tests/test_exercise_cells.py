@@ -46,6 +46,7 @@ def test_check_value_and_prediction(capsys):
     assert [line.split(":")[0] for line in lines] == ["not done yet", "right", "not yet right",
                                                       "not done yet", "right", "not yet right"]
     assert lines[2] == "not yet right: h, not h squared"
+    assert "grows" not in lines[3].split("one of")[0] and lines[3].count("grows") == 1  # only as a choice
 
 
 def test_check_value_compares_a_tableau_of_rows_and_weights(capsys):
