@@ -78,7 +78,10 @@ class Convergence:
         ``method``, ``dt``, ``error`` (final-state max-norm), ``error_rms``, ``local_order``
         (slope from the next larger dt), ``n_force``, ``steps``, ``ok``, ``failure``.
     orders : dict
-        Fitted order per method (nan when fewer than two usable points).
+        Fitted order per method: the slope through the records whose error lies between
+        ``floor`` and ``ceiling`` only (:func:`fit_order`; by default errors above a tenth of
+        the solution's size are left out), so a refit through every record can differ; nan
+        when fewer than two usable points remain.
     expected : dict
         ``get_method(m).order`` per method.
     """
@@ -117,6 +120,8 @@ def convergence(scene: Scene, methods: Sequence[str | Integrator],
     Returns
     -------
     Convergence
+        Every run is in ``records``; ``orders`` are fitted through the kept errors only
+        (between ``floor`` and ``ceiling``).
     """
     t_end = float(scene.settings.t_end if t_end is None else t_end)
     records = work_precision(scene, methods, dts, t_end, timing=False, n_save=n_save, jobs=jobs,
