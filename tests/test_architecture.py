@@ -31,7 +31,8 @@ PACKAGE = ROOT / "mslab"
 #: the layers, top (imports everything below) to bottom (imports nothing of mslab): each a
 #: list of path patterns relative to mslab/ (``fnmatch`` style; a folder ``x/`` means every file in it)
 LAYERS: list[tuple[str, tuple[str, ...]]] = [
-    ("commands/, cli, demo", ("__init__.py", "__main__.py", "cli.py", "demo.py", "commands/")),
+    ("commands/, cli, demo, lesson_mistakes",
+     ("__init__.py", "__main__.py", "cli.py", "demo.py", "lesson_mistakes.py", "commands/")),
     ("plots/", ("plots/",)),
     ("stability/, derive/, precision/, budget", ("stability/", "derive/", "precision/", "budget.py")),
     ("scenes/ (builder, loader, generators)", ("scenes/",)),
