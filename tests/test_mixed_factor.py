@@ -80,6 +80,43 @@ def test_cg_with_the_float32_factor_solves_the_float64_system():
     assert np.abs(x - double.solve(b)).max() <= 1e-10 * np.abs(exact).max()
 
 
+def test_the_blocked_float32_solve_is_within_its_rounding_error_model():
+    """``solve`` against the exact ``P^T L^-T L^-1 P b`` of the same float32 factor (dense, float64).
+
+    Float32 triangular solves (any order of the sums, BLAS or loops) are backward stable
+    (Higham, Accuracy and Stability, Thm 8.5): ``(L + dL) z = b~`` with ``|dL| <= gamma_k |L|``,
+    ``gamma_k = k u / (1 - k u)``, ``u = 2^-24``, ``k`` the terms of a row plus one (the scatter
+    of a supernode's sums); ``b~`` is ``b`` rounded to float32 (``|b~ - b| <= u |b|``). To first
+    order (factor 2 for the second) the error of ``y = L^-T L^-1 b`` is at most
+    ``|L^-T| (|L^-1| (u |b| + gamma_k |L| |z|) + gamma_k |L^T| |y|)`` componentwise.
+    """
+    from scipy.linalg import solve_triangular
+
+    solver, A = newton_matrix()
+    f = mixed.mixed_factor(A, Counters(), solver.pattern, dim=3)
+    L, perm = dense_factor(f), f.analysis.perm
+    b = np.random.default_rng(6).standard_normal(A.shape[0]) * np.exp(np.linspace(-3, 3, A.shape[0]))
+    z = solve_triangular(L, b[perm], lower=True)
+    y = solve_triangular(L.T, z, lower=False)
+    exact = np.empty_like(y)
+    exact[perm] = y * f.scale
+    u = 2.0 ** -24
+    k = int(np.count_nonzero(L, axis=1).max()) + 1
+    gamma = k * u / (1 - k * u)
+    inv = np.abs(solve_triangular(L, np.eye(L.shape[0]), lower=True))
+    bound = np.empty_like(y)
+    bound[perm] = 2 * f.scale * inv.T @ (inv @ (u * np.abs(b[perm]) + gamma * np.abs(L) @ np.abs(z))
+                                         + gamma * np.abs(L.T) @ np.abs(y))
+    x = f.solve(b)
+    assert np.all(np.abs(x - exact) <= bound)
+    assert bound.max() <= 1e-3 * np.abs(exact).max()  # a bound that says something
+    assert np.abs(x - exact).max() > 1e-10 * np.abs(exact).max()  # float32 arithmetic, not float64's 1e-16
+    # b is scaled by a power of two before float32: the same bits for 2^120 b and 2^-140 b
+    assert np.array_equal(f.solve(b * 2.0 ** 120), x * 2.0 ** 120)
+    assert np.array_equal(f.solve(b * 2.0 ** -140), x * 2.0 ** -140)
+    assert np.array_equal(f.solve(np.zeros_like(b)), np.zeros_like(b))
+
+
 def test_a_matrix_that_is_not_positive_definite_gives_no_float32_factor():
     solver, A = newton_matrix()
     lowest = spla.eigsh(A, k=1, sigma=0, which="LM", return_eigenvectors=False)[0]
