@@ -16,8 +16,8 @@ float64 factorisation:
 Cost: the numeric factorisation does the flops of a float64 supernodal one (``sum_s (m_s -
 k_s)^2 k_s`` in BLAS's ``ssyrk``, plus ``strsm`` and ``spotrf`` per supernode) at twice the
 SIMD width and half the memory; a solve reads ``L`` once in each direction (``4 nnz(L)``
-flops in float64, from float32 data: half the bytes of a float64 solve). Measured on the
-70 x 70 cloth in ``benchmarks/RESULTS.md``.
+flops in float32: ``strsv`` and ``sgemv`` per supernode, half the time of float64 loops; its
+rounding is of the order of the factor's). Measured on cloths in ``benchmarks/RESULTS.md``.
 
 The symbolic analysis (:mod:`~mslab.integrators.newton.mixed_symbolic`: AMD order of the
 particle graph, elimination tree, relaxed supernodes, the place of every entry of ``A`` in
