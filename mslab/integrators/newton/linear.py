@@ -76,10 +76,10 @@ MIXED_MIN = 10_000
 #: smaller cloths have larger ratios but cost little either way. A fixed ratio, not a
 #: timing: the same run always takes the same steps, counts and results.
 FACTOR_OVER_SOLVE = 12.0
-#: the same ratio for float32 factors: half a CHOLMOD factorisation's time, solves as costly
-#: (measured 2.0-2.6x and 0.97-1.07x); on the 70 x 70 cloth 16 factorisations and 78 solves in 5
-#: steps against 12 and 129 with the float64 ratio, 1.11x faster (benchmarks/RESULTS.md)
-MIXED_FACTOR_OVER_SOLVE = 6.0
+#: the same ratio for float32 factors: one costs 20-27 of their solves (float32 BLAS) at 70 x 70;
+#: interleaved on 70 x 70 and 100 x 100 cloths 40 beat 6 to 30 (one factorisation a step instead
+#: of 2.7-3, more CG iterations), 60 was within the noise (benchmarks/RESULTS.md, issue 38 item 4)
+MIXED_FACTOR_OVER_SOLVE = 40.0
 
 
 class StageSolver:

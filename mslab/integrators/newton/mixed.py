@@ -16,8 +16,8 @@ float64 factorisation:
 Cost: the numeric factorisation does the flops of a float64 supernodal one (``sum_s (m_s -
 k_s)^2 k_s`` in BLAS's ``ssyrk``, plus ``strsm`` and ``spotrf`` per supernode) at twice the
 SIMD width and half the memory; a solve reads ``L`` once in each direction (``4 nnz(L)``
-flops in float64, from float32 data: half the bytes of a float64 solve). Measured on the
-70 x 70 cloth in ``benchmarks/RESULTS.md``.
+flops in float32: ``strsv`` and ``sgemv`` per supernode, half the time of float64 loops; its
+rounding is of the order of the factor's). Measured on cloths in ``benchmarks/RESULTS.md``.
 
 The symbolic analysis (:mod:`~mslab.integrators.newton.mixed_symbolic`: AMD order of the
 particle graph, elimination tree, relaxed supernodes, the place of every entry of ``A`` in
@@ -34,6 +34,8 @@ iterations, the caller factors in float64 as before (:class:`~mslab.integrators.
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -65,7 +67,7 @@ FRESH_MAX_ITER = 8
 
 
 def _blas() -> tuple:
-    """Return ctypes pointers to scipy's ``spotrf``, ``strsm`` and ``ssyrk`` (made once)."""
+    """Return ctypes pointers to scipy's ``spotrf``, ``strsm``, ``ssyrk``, ``strsv``, ``sgemv``."""
     import ctypes
 
     from numba.extending import get_cython_function_address
@@ -76,7 +78,9 @@ def _blas() -> tuple:
         lapack, blas = "scipy.linalg.cython_lapack", "scipy.linalg.cython_blas"
         _BLAS = (ctypes.CFUNCTYPE(None, *[p] * 5)(get_cython_function_address(lapack, "spotrf")),
                  ctypes.CFUNCTYPE(None, *[p] * 11)(get_cython_function_address(blas, "strsm")),
-                 ctypes.CFUNCTYPE(None, *[p] * 10)(get_cython_function_address(blas, "ssyrk")))
+                 ctypes.CFUNCTYPE(None, *[p] * 10)(get_cython_function_address(blas, "ssyrk")),
+                 ctypes.CFUNCTYPE(None, *[p] * 8)(get_cython_function_address(blas, "strsv")),
+                 ctypes.CFUNCTYPE(None, *[p] * 11)(get_cython_function_address(blas, "sgemv")))
     return _BLAS
 
 
@@ -84,14 +88,28 @@ _BLAS: Any = None
 _BLAS_CONTROLLERS: list | None = None
 
 
-def _blas_controllers() -> list:
-    """Return threadpoolctl's controllers of the BLAS libraries loaded (found once)."""
+@contextmanager
+def one_blas_thread() -> Iterator[None]:
+    """Run the body with the loaded BLAS libraries on one thread (threadpoolctl's controllers, found once).
+
+    The factorisation and the solves call BLAS by function pointer: one thread keeps their
+    order of operations, hence their bits, whatever the caller's thread count.
+    """
     global _BLAS_CONTROLLERS
     if _BLAS_CONTROLLERS is None:
         from threadpoolctl import ThreadpoolController
 
         _BLAS_CONTROLLERS = [c for c in ThreadpoolController().lib_controllers if c.user_api == "blas"]
-    return _BLAS_CONTROLLERS
+    before = [ctl.get_num_threads() for ctl in _BLAS_CONTROLLERS]
+    for ctl, count in zip(_BLAS_CONTROLLERS, before, strict=True):
+        if count != 1:
+            ctl.set_num_threads(1)
+    try:
+        yield
+    finally:
+        for ctl, count in zip(_BLAS_CONTROLLERS, before, strict=True):
+            if count != 1:
+                ctl.set_num_threads(count)
 
 
 def block_size(indptr: np.ndarray, indices: np.ndarray, n: int, dim: int) -> int:
@@ -233,17 +251,26 @@ class MixedFactor:
 
     def __init__(self, A: sp.csr_matrix, analysis: MixedAnalysis, L: np.ndarray, pattern: Any, scale: float):
         self.A, self.analysis, self.L, self.pattern, self.scale = A, analysis, L, pattern, scale
-        n = analysis.perm.size
-        self._work = np.empty(2 * n)
-        self._kernel = compiled(mixed_solve_kernel, "the solves with the float32 factor", fastmath=True)
+        self._work = np.empty(2 * analysis.perm.size, np.float32)
+        self._kernel = compiled(mixed_solve_kernel, "the solves with the float32 factor")
 
     def solve(self, b: np.ndarray) -> np.ndarray:
-        """Return ``P^T (L L^T)^-1 P b`` (float64 arithmetic, float32 factor; timed)."""
+        """Return ``P^T (L L^T)^-1 P b`` (float32 BLAS on ``b`` scaled by a power of two; timed)."""
         start = time.perf_counter()
         a = self.analysis
         out = np.empty(a.perm.size)
         rhs = np.ascontiguousarray(b, dtype=float)
-        self._kernel(rhs, self.scale, a.perm, a.sn, a.rows, self.L, self._work, out)
+        top = float(np.max(np.abs(rhs))) if rhs.size else 0.0
+        if not 0.0 < top < np.inf:  # zero (the answer) or not finite (NaN reaches CG, which stops)
+            out[:] = rhs * self.scale
+            self.solve_seconds = time.perf_counter() - start
+            return out
+        shift = float(2.0 ** np.frexp(top)[1])  # max |b / shift| in [1/2, 1): exact
+        ints, reals, chars = np.zeros(4, np.int32), np.zeros(3, np.float32), np.zeros(3, np.uint8)
+        with one_blas_thread():
+            self._kernel(rhs, shift, a.perm, a.sn, a.rows, self.L, self._work, out, *_blas()[3:], ints, reals,
+                         chars)
+        out *= self.scale
         self.solve_seconds = time.perf_counter() - start
         return out
 
@@ -278,18 +305,9 @@ def mixed_factor(A: sp.csr_matrix, counters: Counters, pattern: Any = None,
         return None
     scale = 1.0 / top
     ints, reals, chars = np.zeros(8, np.int32), np.zeros(2, np.float32), np.zeros(8, np.uint8)
-    controllers = _blas_controllers()
-    before = [ctl.get_num_threads() for ctl in controllers]
-    for ctl, count in zip(controllers, before, strict=True):
-        if count != 1:
-            ctl.set_num_threads(1)
-    try:
+    with one_blas_thread():
         info = kernel(np.asarray(A.data, dtype=float), scale, TINY, a.a_ptr, a.a_slot, a.a_pos, a.sn,
-                      a.children, a.child_ptr, a.rel, L, front, stack, *_blas(), ints, reals, chars)
-    finally:
-        for ctl, count in zip(controllers, before, strict=True):
-            if count != 1:
-                ctl.set_num_threads(count)
+                      a.children, a.child_ptr, a.rel, L, front, stack, *_blas()[:3], ints, reals, chars)
     if info != 0:  # (LAPACK stops at a pivot that is not positive or is NaN)
         return None
     factor = MixedFactor(A, a, L, pattern, scale)

@@ -18,12 +18,15 @@ BLAS and LAPACK routines are scipy's (``scipy.linalg.cython_blas``/``cython_lapa
 in as function pointers so that numba can cache the loop. Everything runs on one thread in a
 fixed order (BLAS limited to one thread by the caller): the same bits on every run.
 
-The solves read the float32 factor and compute in float64 (``x = P^T L^-T L^-1 P b``): the
-preconditioner's only error is the factor's rounding. They are compiled with fast-math (the
-backward solve's sums vectorised, products and sums fused; the loops hold no comparison a
-NaN could mislead, and a NaN still reaches CG, which then stops): the order is fixed by the
-compiled code, so the bits are the same on every run and thread count on one machine (as
-BLAS's, they may differ between processors of other SIMD widths).
+The solves (:func:`mixed_solve_kernel`) are blocked by supernode: per supernode one ``strsv``
+on its diagonal block and one ``sgemv`` on the rows below it, in float32 (scipy's BLAS, again
+by function pointer), the permutation, gathers and scatters in compiled loops. Float32
+arithmetic adds a backward error of the order of the factor's own rounding (``|dL| <= gamma_k
+|L|`` per triangular solve, ``k`` the terms of a row: ``tests/test_mixed_factor.py`` checks the
+bound) and costs half the time of the float64 loops it replaced (measured in
+``benchmarks/RESULTS.md``). BLAS runs on one thread (the caller limits it): the same bits on
+every run and thread count on one machine (as BLAS's, they may differ between processors of
+other SIMD widths).
 """
 
 from __future__ import annotations
@@ -109,61 +112,58 @@ def mixed_factor_kernel(data: np.ndarray, scale: float, tiny: float, a_ptr: np.n
     return 0
 
 
-def mixed_solve_kernel(b: np.ndarray, scale: float, perm: np.ndarray, sn: np.ndarray, rows: np.ndarray,
-                       L: np.ndarray, y: np.ndarray, out: np.ndarray) -> None:
-    """``out = A^-1 b`` approximately: ``scale P^T L^-T L^-1 P b`` (``L L^T ~ scale P A P^T``), in float64.
+def mixed_solve_kernel(b: np.ndarray, shift: float, perm: np.ndarray, sn: np.ndarray, rows: np.ndarray,
+                       L: np.ndarray, y: np.ndarray, out: np.ndarray, trsv: Any, gemv: Any, ints: np.ndarray,
+                       reals: np.ndarray, chars: np.ndarray) -> None:
+    """``out = shift * P^T L^-T L^-1 P (b / shift)`` in float32 BLAS calls per supernode (float64 ``out``).
 
-    ``rows``: every supernode's rows below its columns (starting at ``sn[s, 4]``); ``y``: work
-    (n,) and (n,) more for the gathered rows (``y[n:]``).
+    ``shift``: a power of two near ``max |b|`` (the float32 work then neither overflows nor
+    underflows; scaling by it is exact). ``y`` (float32, 2n): the permuted right-hand side and
+    the rows gathered below a supernode (``y[n:]``). Per supernode ``s`` (columns ``f..f+k``,
+    ``L11`` its ``k x k`` block, ``L21`` the ``m - k`` rows below, column-major with ``lda = m``):
+
+    * forward: ``y_s = L11^-1 y_s`` (``strsv``), ``t = L21 y_s`` (``sgemv``), ``y[rows] -= t``;
+    * backward (supernodes in reverse): ``y_s -= L21^T y[rows]`` (``sgemv``),
+      ``y_s = L11^-T y_s`` (``strsv``).
+
+    ``ints`` (int32, 4), ``reals`` (float32, 3), ``chars`` (uint8, 3): the arguments BLAS takes
+    by address.
     """
+    chars[0] = 76  # "L"
+    chars[1] = 78  # "N"
+    chars[2] = 84  # "T"
+    reals[0] = 1.0
+    reals[1] = 0.0
+    reals[2] = -1.0
+    ints[2] = 1
     n = perm.size
+    inv = 1.0 / shift
     for i in range(n):
-        y[i] = b[perm[i]]
+        y[i] = b[perm[i]] * inv
+    gathered = y[n:]
     for s in range(sn.shape[0]):  # forward: L z = P b
         f, k, m, start, r0 = sn[s, 0], sn[s, 1], sn[s, 2], sn[s, 3], sn[s, 4]
-        for j in range(k):
-            col = start + j * m
-            yj = y[f + j] / L[col + j]
-            y[f + j] = yj
-            for i in range(j + 1, k):
-                y[f + i] -= L[col + i] * yj
-        below = m - k
-        acc = y[n:n + below]
-        for i in range(below):
-            acc[i] = 0.0
-        j = 0
-        while j < k:  # four columns at a time: one pass over acc per four columns of L
-            c0 = start + j * m + k
-            y0 = y[f + j]
-            if j + 4 <= k:
-                y1, y2, y3 = y[f + j + 1], y[f + j + 2], y[f + j + 3]
-                for i in range(below):
-                    acc[i] += ((L[c0 + i] * y0 + L[c0 + m + i] * y1)
-                               + (L[c0 + 2 * m + i] * y2 + L[c0 + 3 * m + i] * y3))
-                j += 4
-            else:
-                for i in range(below):
-                    acc[i] += L[c0 + i] * y0
-                j += 1
-        for i in range(below):
-            y[rows[r0 + i]] -= acc[i]
+        ints[0], ints[1], ints[3] = k, m, m - k
+        ys, block, below = y[f:], L[start:], L[start + k:]
+        trsv(chars[0:].ctypes, chars[1:].ctypes, chars[1:].ctypes, ints[0:].ctypes, block.ctypes,
+             ints[1:].ctypes, ys.ctypes, ints[2:].ctypes)
+        if m > k:
+            gemv(chars[1:].ctypes, ints[3:].ctypes, ints[0:].ctypes, reals[0:].ctypes, below.ctypes,
+                 ints[1:].ctypes, ys.ctypes, ints[2:].ctypes, reals[1:].ctypes, gathered.ctypes,
+                 ints[2:].ctypes)
+            for i in range(m - k):
+                y[rows[r0 + i]] -= gathered[i]
     for s in range(sn.shape[0] - 1, -1, -1):  # backward: L^T x = z
         f, k, m, start, r0 = sn[s, 0], sn[s, 1], sn[s, 2], sn[s, 3], sn[s, 4]
-        below = m - k
-        g = y[n:n + below]
-        for i in range(below):
-            g[i] = y[rows[r0 + i]]
-        for j in range(k):
-            c0 = start + j * m + k
-            dot = 0.0
-            for i in range(below):  # a sum numba vectorises (compiled with fast-math)
-                dot += L[c0 + i] * g[i]
-            y[f + j] -= dot
-        for j in range(k - 1, -1, -1):
-            col = start + j * m
-            yj = y[f + j]
-            for i in range(j + 1, k):
-                yj -= L[col + i] * y[f + i]
-            y[f + j] = yj / L[col + j]
+        ints[0], ints[1], ints[3] = k, m, m - k
+        ys, block, below = y[f:], L[start:], L[start + k:]
+        if m > k:
+            for i in range(m - k):
+                gathered[i] = y[rows[r0 + i]]
+            gemv(chars[2:].ctypes, ints[3:].ctypes, ints[0:].ctypes, reals[2:].ctypes, below.ctypes,
+                 ints[1:].ctypes, gathered.ctypes, ints[2:].ctypes, reals[0:].ctypes, ys.ctypes,
+                 ints[2:].ctypes)
+        trsv(chars[0:].ctypes, chars[2:].ctypes, chars[1:].ctypes, ints[0:].ctypes, block.ctypes,
+             ints[1:].ctypes, ys.ctypes, ints[2:].ctypes)
     for i in range(n):
-        out[perm[i]] = y[i] * scale
+        out[perm[i]] = y[i] * shift
