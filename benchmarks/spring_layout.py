@@ -13,7 +13,7 @@ powers from the same start, compared bitwise; then interleaved repeats, each tim
 (one vectorised square root and division per spring, ``benchmarks/warp_cloth.py``), the old
 kernel and the new one back to back in CPU time on one thread (300²: also both cores, wall
 time). Medians of the per-repeat ratios with their range and the load average of each size
-are written to ``benchmarks/spring_layout.json``. Nothing here is a test.
+are written to ``benchmarks/spring_layout.json`` (or ``--out``). Nothing here is a test.
 """
 
 from __future__ import annotations
@@ -110,6 +110,7 @@ def main() -> None:
     parser.add_argument("--before", default="main")
     parser.add_argument("--repeats", type=int, default=21)
     parser.add_argument("--sizes", type=int, nargs="+", default=[64, 128, 300])
+    parser.add_argument("--out", default="spring_layout.json", help="file name in benchmarks/")
     args = parser.parse_args()
     from mslab import jit
     from mslab.effects.spring_kernels import spring_kernel
@@ -129,7 +130,7 @@ def main() -> None:
                           f"floor {ns['floor']:.2f}; new/old {r['median']:.3f} "
                           f"({r['min']:.3f}-{r['max']:.3f}); load {row['load_average'][0]:.1f}", flush=True)
     doc = {"machine": machine(), "before": args.before, "rows": rows}
-    (HERE / "spring_layout.json").write_text(json.dumps(doc, indent=1) + "\n")
+    (HERE / args.out).write_text(json.dumps(doc, indent=1) + "\n")
 
 
 if __name__ == "__main__":

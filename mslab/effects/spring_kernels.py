@@ -70,14 +70,17 @@ def spring_batch(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: 
             longest = max(longest, np.int64(bounds[s + 1]) - np.int64(bounds[s]))
     pair = np.empty(3 * longest, x.dtype)  # a run's pair forces
     rates = np.empty(longest if damped else 0, x.dtype)  # a run's dissipated powers
+    flat_x = x.reshape(x.size)  # flat views made once per batch, not per run (each view of an
+    flat_v = v.reshape(v.size)  # array costs reference counting: calls and atomic operations)
+    flat_f = f.reshape(f.size)
     power = 0.0
     for s in range(first, last):
         start = bounds[s]
         stop = bounds[s + 1]
         if runs and run[s]:
-            power = spring_run(x, v, f, stiffness, rest_length, damping, damped, np.int64(i[start]),
-                               np.int64(j[start]), np.int64(start), np.int64(stop), power, pair, rates,
-                               run[s])
+            power = spring_run(flat_x, flat_v, flat_f, stiffness, rest_length, damping, damped,
+                               np.int64(i[start]), np.int64(j[start]), np.int64(start), np.int64(stop),
+                               power, pair, rates, run[s])
         else:
             power = spring_range(x, v, f, i, j, stiffness, rest_length, damping, damped, start, stop,
                                  power)
@@ -155,7 +158,8 @@ def spring_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, stiffness: np.ndarra
                flags: int = 1) -> float:
     """Add the forces of a run of springs in 3D to ``f``; return ``power`` plus their dissipated power.
 
-    Springs ``start:stop`` join particles ``a + s`` and ``b + s`` (``s = 0 .. m-1``, ``b > a``,
+    ``x``, ``v``, ``f`` are the flat views (``3 n``) of the ``(n, 3)`` arrays. Springs
+    ``start:stop`` join particles ``a + s`` and ``b + s`` (``s = 0 .. m-1``, ``b > a``,
     :func:`mslab.effects.spring_batches.segments`). :func:`pair_scale` for each, in
     loops over contiguous memory that the compiler vectorises (square roots and divisions
     several at a time): the pair forces ``f_q`` into ``pair`` (and the powers into ``rates``),
@@ -165,81 +169,84 @@ def spring_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, stiffness: np.ndarra
     (``benchmarks/RESULTS.md``). The powers are summed by :func:`lane_sum` (round-off apart
     from a sum in spring order; the same on every machine and thread count). A damped run whose
     ``flags`` (:func:`mslab.effects.spring_batches.run_flags`) say it has one stiffness and
-    one damping keeps them in registers (the same bits, fewer loads). Cost: one square root
-    and one division per spring, ``O(m)`` memory traffic.
+    one damping keeps them in registers (the same bits, fewer loads).
+
+    No array view is made here: every view costs numba's reference counting (a call and an
+    atomic operation each), which took a third of a 127-spring run. Indices are offsets from
+    the run's first entries, unsigned (numba then adds no test for negative indices, which
+    would stop the vectoriser). Cost: one square root and one division per spring, ``O(m)``
+    memory traffic.
     """
     m = stop - start
-    flat_x = x.reshape(x.size)
-    flat_f = f.reshape(f.size)
-    xa = flat_x[3 * a:3 * (a + m)]
-    xb = flat_x[3 * b:3 * (b + m)]
-    k = stiffness[start:stop]
-    rest = rest_length[start:stop]
-    c = damping[start:stop]
-    out = pair[:3 * m]
+    xa = np.uint64(3 * a)  # x[a + s] starts at xa + 3 s, x[b + s] at xb + 3 s
+    xb = np.uint64(3 * b)
+    first = np.uint64(start)
     if damped:
-        rate_of = rates[:m]
-        flat_v = v.reshape(v.size)
-        va = flat_v[3 * a:3 * (a + m)]
-        vb = flat_v[3 * b:3 * (b + m)]
         if (flags & 2) != 0:  # spring_batches.SAME_STIFFNESS: k and c in registers
-            k0, c0 = k[0], c[0]
+            k0, c0 = stiffness[first], damping[first]
             for s in range(m):
-                run_pair(xa, xb, va, vb, s, k0, rest[s], c0, 1, out, rate_of)
+                q = np.uint64(s)
+                run_pair(x, v, xa, xb, q, k0, rest_length[first + q], c0, 1, pair, rates)
         else:
             for s in range(m):
-                run_pair(xa, xb, va, vb, s, k[s], rest[s], c[s], 1, out, rate_of)
-        power += lane_sum(rate_of)
+                q = np.uint64(s)
+                run_pair(x, v, xa, xb, q, stiffness[first + q], rest_length[first + q],
+                         damping[first + q], 1, pair, rates)
+        power += lane_sum(rates, m)
     else:  # (one stiffness in a register measured no faster here: the loads are not what bounds it)
+        zero = stiffness.dtype.type(0.0)
         for s in range(m):
-            run_pair(xa, xb, xa, xb, s, k[s], rest[s], k.dtype.type(0.0), 0, out, rates)
-    # f[a + s] += out[s] and f[b + s] -= out[s], the j end first where a particle has both ends
+            q = np.uint64(s)
+            run_pair(x, x, xa, xb, q, stiffness[first + q], rest_length[first + q], zero, 0, pair,
+                     rates)
+    # f[a + s] += pair[s] and f[b + s] -= pair[s], the j end first where a particle has both ends
     shift = 3 * (b - a)
-    span = flat_f[3 * a:3 * (b + m)]
-    head = min(shift, 3 * m)
-    for t in range(head):  # particles with an i end only
-        span[t] += out[t]
-    twice = span[shift:3 * m]
-    late = out[shift:3 * m] if shift < 3 * m else out[:0]
-    for t in range(twice.shape[0]):  # both ends: -f of spring p - b, then +f of spring p - a
-        twice[t] = (twice[t] - out[t]) + late[t]
-    tail = span[max(shift, 3 * m):]
-    early = out[max(3 * m - shift, 0):]
-    for t in range(tail.shape[0]):  # a j end only
-        tail[t] -= early[t]
+    size = 3 * m
+    for t in range(min(shift, size)):  # particles with an i end only
+        f[xa + np.uint64(t)] += pair[np.uint64(t)]
+    for t in range(shift, size):  # both ends: -f of spring p - b, then +f of spring p - a
+        e = xa + np.uint64(t)
+        f[e] = (f[e] - pair[np.uint64(t - shift)]) + pair[np.uint64(t)]
+    for t in range(max(shift, size), shift + size):  # a j end only
+        f[xa + np.uint64(t)] -= pair[np.uint64(t - shift)]
     return power
 
 
-def run_pair(xa: np.ndarray, xb: np.ndarray, va: np.ndarray, vb: np.ndarray, s: int, k: float,
-             rest: float, c: float, damped: int, out: np.ndarray, rates: np.ndarray) -> None:
+def run_pair(x: np.ndarray, v: np.ndarray, xa: int, xb: int, s: int, k: float, rest: float, c: float,
+             damped: int, out: np.ndarray, rates: np.ndarray) -> None:
     """Write spring ``s`` of a run: its pair force into ``out[3s:3s+3]``, its power into ``rates[s]``.
 
-    The body of :func:`spring_run`'s loops (inlined there; ``damped`` a constant of each loop).
+    The body of :func:`spring_run`'s loops (inlined there; ``damped`` a constant of each loop);
+    the ends' coordinates start at ``xa + 3 s`` and ``xb + 3 s`` of the flat ``x`` and ``v``.
     """
-    dx = xa[3 * s] - xb[3 * s]
-    dy = xa[3 * s + 1] - xb[3 * s + 1]
-    dz = xa[3 * s + 2] - xb[3 * s + 2]
-    rate = xa.dtype.type(0.0)
+    t = np.uint64(3) * s
+    one = np.uint64(1)
+    two = np.uint64(2)
+    dx = x[xa + t] - x[xb + t]
+    dy = x[xa + t + one] - x[xb + t + one]
+    dz = x[xa + t + two] - x[xb + t + two]
+    rate = x.dtype.type(0.0)
     if damped:
-        rate = dx * (va[3 * s] - vb[3 * s])
-        rate += dy * (va[3 * s + 1] - vb[3 * s + 1])
-        rate += dz * (va[3 * s + 2] - vb[3 * s + 2])
+        rate = dx * (v[xa + t] - v[xb + t])
+        rate += dy * (v[xa + t + one] - v[xb + t + one])
+        rate += dz * (v[xa + t + two] - v[xb + t + two])
     scale, p = pair_scale(dx, dy, dz, rate, k, rest, c, damped)
     if damped:
         rates[s] = p
-    out[3 * s] = scale * dx
-    out[3 * s + 1] = scale * dy
-    out[3 * s + 2] = scale * dz
+    out[t] = scale * dx
+    out[t + one] = scale * dy
+    out[t + two] = scale * dz
 
 
-def lane_sum(values: np.ndarray) -> float:
-    """Return the sum of ``values`` in eight lanes: ``values[s]`` into lane ``s % 8``, lanes added pairwise.
+def lane_sum(values: np.ndarray, count: int = -1) -> float:
+    """Return the sum of ``values[:count]`` (all if ``count < 0``) in eight lanes, lanes added pairwise.
 
-    Eight independent running sums instead of one (whose every addition waits for the
-    previous: about 1 ns a value); the order is fixed by the code, never by the machine or
-    the compiler (no reassociation is allowed), so the result is the same everywhere.
+    ``values[s]`` goes into lane ``s % 8``: eight independent running sums instead of one
+    (whose every addition waits for the previous: about 1 ns a value); the order is fixed by the
+    code, never by the machine or the compiler (no reassociation is allowed), so the result is the
+    same everywhere.
     """
-    n = values.shape[0]
+    n = values.shape[0] if count < 0 else count
     body = n - n % 8
     s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = 0.0
     for q in range(0, body, 8):
