@@ -8,9 +8,16 @@ window.labTest = (() => {
   let panel = null, doc = null;
   const kernel = () => panel.sessionContext.session?.kernel;
   const idle = () => kernel()?.status === 'idle';
-  async function until(cond, what, seconds) {
-    const end = Date.now() + seconds * 1000;
-    while (!cond()) { if (Date.now() > end) throw new Error('timed out: ' + what); await sleep(100); }
+  // wait for cond(); fails after `seconds` without progress: progress() (a count of finished
+  // work, e.g. executed cells) restarts the clock whenever it changes
+  async function until(cond, what, seconds, progress = () => 0) {
+    let end = Date.now() + seconds * 1000, last = progress();
+    while (!cond()) {
+      const now = progress();
+      if (now !== last) { last = now; end = Date.now() + seconds * 1000; }
+      if (Date.now() > end) throw new Error(`timed out: ${what} (${seconds} s without progress)`);
+      await sleep(100);
+    }
   }
   const cellOf = node => panel.content.widgets.findIndex(w => w.node.contains(node));
   function leftoverTeX(root) {
@@ -96,13 +103,14 @@ window.labTest = (() => {
     await panel.revealed; await frame();
     return true;
   }
-  async function waitRun(seconds) {
+  async function waitRun(seconds) {     // seconds: one cell's budget (the clock restarts per cell)
     const code = panel.content.widgets.filter(c => c.model.type === 'code'
                                               && c.model.sharedModel.getSource().trim());
     const queued = () => code.some(c => c.model.executionState === 'running');
     const d = doc, finished = () => d.executed >= code.length || d.errored > 0;   // Run All stops at an error
+    const done = () => code.filter(c => c.model.executionState !== 'running' && c.model.executionCount).length;
     await until(() => d.seen.includes('restarting') && idle() && !queued() && finished(),
-                'Restart Kernel and Run All Cells', seconds);
+                'Restart Kernel and Run All Cells', seconds, () => `${d.executed}/${done()}/${d.seen.length}`);
     return report();
   }
   async function interacts() {
@@ -125,7 +133,7 @@ window.labTest = (() => {
     window.__observer.observe(out, {childList: true, subtree: true, characterData: true});
   }
   async function redrawn(box, seconds) {
-    await until(() => window.__changes > 0 && idle(), 'the widget to redraw', seconds);
+    await until(() => window.__changes > 0 && idle(), 'the widget to redraw', seconds, () => window.__changes);
     const out = box.querySelector('.widget-output');
     const shown = [...out.querySelectorAll('.jp-OutputArea-output')];
     return {
