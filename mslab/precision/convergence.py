@@ -39,7 +39,7 @@ def fit_order(dts: Sequence[float], errors: Sequence[float], floor: float = ROUN
 
 
 def error_ceiling(scene: Scene, t_end: float) -> float:
-    """Return a tenth of the solution's size: larger errors are outside the asymptotic range.
+    """Return a tenth of the scene's size: larger errors are outside the asymptotic range.
 
     The size is the larger of the scene's extent (bounding-box diagonal of the initial and
     the reference final positions) and the largest reference speed at ``t_end``.
