@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -45,7 +46,7 @@ def _rounded(values: object) -> list[float]:
     return [float(f"{v:.{DIGITS}g}") for v in np.asarray(values, dtype=float)]
 
 
-def _stored(drift: Drift) -> dict:
+def stored_run(drift: Drift) -> dict:
     """One run: its summary without the wall time, and its saved samples to ``DIGITS`` digits."""
     record = {k: v for k, v in drift.as_record().items() if k != "wall_time"}
     record.update({k: float(f"{record[k]:.{DIGITS}g}") for k in ("max_error", "final_error", "drift_rate",
@@ -64,29 +65,34 @@ def compute() -> dict:
     bands = {}
     for h in STEPS:
         runs = energy_drift(stiff, list(SYMPLECTIC), dt=h, t_end=LONG_T, n_save=LONG_SAVE, backend="numba")
-        bands[repr(h)] = {name: _stored(d) for name, d in runs.items()}
+        bands[repr(h)] = {name: stored_run(d) for name, d in runs.items()}
     rk4 = energy_drift(stiff, ["rk4"], dt=COURSE_STEP, t_end=LONG_T, n_save=LONG_SAVE, backend="numba")["rk4"]
     setup = {"scene": f"chain(n=8, dim=2, stiffness={STIFFNESS:g})", "course_step": COURSE_STEP,
              "course_t_end": COURSE_T, "steps": list(STEPS), "methods": list(SYMPLECTIC), "t_end": LONG_T,
              "rk4_step": COURSE_STEP, "made_by": "tools/lesson06_long_runs.py"}
     return {"setup": setup, "strain": _rounded([lengths.min(), lengths.max()]),
-            "course": {name: _stored(d) for name, d in course.items()}, "bands": bands, "rk4": _stored(rk4)}
+            "course": {name: stored_run(d) for name, d in course.items()}, "bands": bands,
+            "rk4": stored_run(rk4)}
+
+
+def write_or_check(out: Path, compute_data: Callable[[], dict], argv: list[str] | None = None) -> int:
+    """Write ``compute_data()`` as JSON to ``out``; ``--check``: compare a fresh run, exit 1 if it differs."""
+    parser = argparse.ArgumentParser(description="write a lesson's stored long runs; --check compares")
+    parser.add_argument("--check", action="store_true", help="recompute and compare with the stored file")
+    args = parser.parse_args(argv)
+    text = json.dumps(compute_data(), separators=(",", ":")) + "\n"
+    if args.check:
+        same = out.exists() and json.loads(out.read_text()) == json.loads(text)
+        print(f"{out.relative_to(ROOT)}: {'reproduced' if same else 'DIFFERS from a fresh run'}")
+        return 0 if same else 1
+    out.write_text(text)
+    print(f"wrote {out.relative_to(ROOT)} ({len(text) // 1024} KiB)")
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:
     """Write (or with ``--check`` compare) ``lessons/06_long_runs.json``."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--check", action="store_true", help="recompute and compare with the stored file")
-    args = parser.parse_args(argv)
-    text = json.dumps(compute(), separators=(",", ":")) + "\n"
-    if args.check:
-        same = OUT.exists() and json.loads(OUT.read_text()) == json.loads(text)
-        print(f"{OUT.relative_to(ROOT)}: {'reproduced' if same else 'DIFFERS from a fresh run'}")
-        return 0 if same else 1
-    OUT.write_text(text)
-    print(f"wrote {OUT.relative_to(ROOT)} ({len(text) // 1024} KiB)")
-    return 0
-
+    return write_or_check(OUT, compute, argv)
 
 if __name__ == "__main__":
     sys.exit(main())
