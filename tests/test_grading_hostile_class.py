@@ -125,6 +125,7 @@ def _attack(*args):
         try:
             with open(log, "a") as fh:
                 fh.write(" ".join(_SEEN) + "\n")
+            os.chmod(log, 0o666)  # readable by a classmate's uid too, as a colluding student makes it
         except OSError:
             pass
     raise RuntimeError("seen " + " ".join(sorted(_SEEN)))
@@ -310,7 +311,9 @@ def _with_round20(mode: str) -> bool:
 
 
 def _honest(mode: str) -> list[str]:
-    return HONEST + ([] if _with_round20(mode) else SPARE_HONEST)
+    """The honest students: in rlimits as root one spare gives its place to ``quoter_b``."""
+    spares = [] if _with_round20(mode) else SPARE_HONEST[:-1] if mode == "rlimits" else SPARE_HONEST
+    return HONEST + spares
 
 
 def _build(base: Path, prober: str, mode: str) -> tuple[Path, Path]:
@@ -335,6 +338,8 @@ def _build(base: Path, prober: str, mode: str) -> tuple[Path, Path]:
                                 mark=DAEMON_MARK) + EVERY_FUNCTION,
         ".dotted": REFERENCE,
     })
+    if mode == "rlimits":  # a classmate graded after the quoter reads what it left in /tmp, /dev/shm
+        files["quoter_b"] = QUOTER + EVERY_FUNCTION
     if _with_round20(mode):
         files.update({name: f"{LEAK}\ndef _attack(*args):\n    {body}\n{EVERY_FUNCTION}"
                       for name, body in LEAKERS.items()})
@@ -480,6 +485,19 @@ def test_the_quoter_sees_public_inputs_only(graded):
     quoted = " ".join(_reasons(_student(docs, "quoter"), "test_public"))
     assert PUBLIC_MARK in quoted, quoted  # the channel is real: this test can fail
     assert HIDDEN_MARK not in quoted
+
+
+def test_a_classmate_graded_later_reads_no_hidden_input(graded):
+    """rlimits as root: the sandboxes share /tmp, /var/tmp and /dev/shm, where the quoter's hidden
+    sandbox logs every input it saw; ``quoter_b``, graded after it, quotes every log it finds in its
+    public message. Students are graded one at a time and a throwaway uid's files go with its
+    sandbox, so no hidden input reaches it (before: the quoter's log, readable by all, did)."""
+    if graded["mode"] != "rlimits":
+        pytest.skip("bwrap and namespaces give every sandbox its own /tmp; rlimits as a user is not "
+                    "isolated at all (README's isolation table)")
+    quoted = " ".join(_reasons(_student(_docs(graded), "quoter_b"), "test_public"))
+    assert PUBLIC_MARK in quoted, quoted  # its channel works: this test can fail
+    assert HIDDEN_MARK not in quoted, quoted
 
 
 def _outputs(graded) -> list[str]:

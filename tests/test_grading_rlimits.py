@@ -201,12 +201,57 @@ def test_the_runner_kills_the_orphans_it_adopts():
     assert proc.stdout.split() == ["True", "False"], proc.stdout + proc.stderr
 
 
-def test_students_share_one_uids_process_limit_only_one_at_a_time():
-    """rlimits as a user without cgroups: one student at a time (a fork bomb beside an honest
+def test_rlimits_grades_one_student_at_a_time():
+    """rlimits: one student at a time, as root too (sandboxes share /tmp and /dev/shm: two students
+    at once could pass a hidden input while both run; as a user a fork bomb beside an honest
     classmate starved it: 13 of 15 in the hostile class, intermittently); elsewhere ``--jobs``."""
     from mslab.grading.autograde import parallel_jobs
 
     assert parallel_jobs(4, "rlimits", None, euid=1000) == 1
-    assert parallel_jobs(4, "rlimits", object(), euid=1000) == 4  # a cgroup per sandbox caps its pids
-    assert parallel_jobs(4, "rlimits", None, euid=0) == 4  # a throwaway uid per sandbox
+    assert parallel_jobs(4, "rlimits", object(), euid=1000) == 1
+    assert parallel_jobs(4, "rlimits", None, euid=0) == 1
     assert parallel_jobs(4, "bwrap", None, euid=1000) == 4
+    assert parallel_jobs(4, "namespaces", object(), euid=0) == 4
+
+
+@pytest.mark.skipif(os.geteuid() != 0, reason="a throwaway uid needs root")
+def test_a_throwaway_uids_files_in_shared_folders_go_with_its_sandbox(tmp_path):
+    """What a sandbox run as a throwaway uid leaves in /tmp, /dev/shm or a world-writable folder
+    inside them (a hidden input for a classmate graded later) is removed when the sandbox ends;
+    another uid's file and a link's target stay. Fails on the old ``release_uid`` (files kept)."""
+    from mslab.grading import isolation
+
+    uid = UID_BASE + UID_SPAN - 7
+    shared = Path(tempfile.mkdtemp(prefix="mslab-shared-", dir="/tmp"))
+    shared.chmod(0o1777)                                   # like /tmp/.X11-unix: anyone may write
+    keep = tmp_path / "target.txt"
+    keep.write_text("the grader's")
+    planted = [Path("/tmp") / f"mslab-plant-{uid}", Path("/dev/shm") / f"mslab-plant-{uid}",
+               shared / "inner.txt"]
+    pid = os.fork()
+    if pid == 0:                                           # the sandbox: plant files as the uid
+        try:
+            isolation.become(uid)
+            for path in planted:
+                path.write_text("hidden input 0.3141")
+            os.mkdir(f"/tmp/mslab-plant-dir-{uid}")
+            Path(f"/tmp/mslab-plant-dir-{uid}/x").write_text("y")
+            os.symlink(keep, f"/tmp/mslab-plant-link-{uid}")
+        finally:
+            os._exit(0)
+    os.waitpid(pid, 0)
+    others = shared / "grader.txt"
+    others.write_text("root's")
+    made = [*planted, Path(f"/tmp/mslab-plant-dir-{uid}"), Path(f"/tmp/mslab-plant-link-{uid}")]
+    try:
+        assert all(os.path.lexists(p) for p in made), "the uid could not plant its files"
+        isolation.release_uid(uid)
+        assert [p for p in made if os.path.lexists(p)] == []
+        assert others.read_text() == "root's" and keep.read_text() == "the grader's"
+    finally:
+        for p in made:
+            if os.path.isdir(p) and not os.path.islink(p):
+                shutil.rmtree(p, ignore_errors=True)
+            elif os.path.lexists(p):
+                os.unlink(p)
+        shutil.rmtree(shared, ignore_errors=True)

@@ -195,17 +195,18 @@ def _run_chunk(items: list[dict], ctx: dict, on_item: Callable[[str, dict | None
 
 
 def parallel_jobs(jobs: int, mode: str, cgroups: object, euid: int) -> int:
-    """How many students are graded at once: ``jobs``, or 1 where their sandboxes share one uid's limits.
+    """How many students are graded at once: ``jobs``, or 1 in rlimits mode.
 
-    In rlimits mode without root every sandbox runs as the grader's own uid, and without a
-    cgroup per sandbox the only cap on processes is ``RLIMIT_NPROC``, which counts every
-    process of that uid: a fork bomb beside an honest classmate would starve the classmate's
-    sandbox (a thread or a child it cannot start). Graded one at a time, each student's
-    processes are killed before the next one starts.
+    rlimits sandboxes share the machine's ``/tmp``, ``/var/tmp`` and ``/dev/shm``: two students
+    graded at once could pass files there while both run (a hidden sandbox's inputs to a
+    classmate's public message). Graded one at a time, each sandbox's files are removed when it
+    ends (as root, :func:`mslab.grading.isolation.release_uid`) before the next one starts. Without
+    root every sandbox also runs as the grader's own uid, whose ``RLIMIT_NPROC`` counts all of
+    its processes: a fork bomb would starve a classmate's sandbox running beside it.
+    ``cgroups`` and ``euid`` are kept for the callers; rlimits means one at a time either way.
     """
-    if mode == "rlimits" and euid != 0 and cgroups is None:
-        return 1
-    return jobs
+    del cgroups, euid
+    return 1 if mode == "rlimits" else jobs
 
 
 def grade(paths: Iterable[str | Path], source: str | Path, jobs: int | None = None, timeout: float = 10.0,

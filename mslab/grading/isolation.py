@@ -26,12 +26,14 @@ other submission), a private ``/tmp`` and ``/work`` (small tmpfs holding its fil
 
 from __future__ import annotations
 
+import contextlib
 import glob
 import json
 import os
 import secrets
 import shutil
 import signal
+import stat
 import subprocess
 import sys
 import sysconfig
@@ -299,17 +301,55 @@ def become(uid: int) -> None:
 
 
 def release_uid(uid: int) -> None:
-    """Kill every process of the throwaway ``uid`` (from a process of that uid) and remove its folder."""
+    """Kill every process of the throwaway ``uid``, remove its files and its folder.
+
+    The processes and what the uid left in the shared writable folders (:func:`remove_files_of`)
+    go from a process of that uid: the owner may unlink its files in a sticky folder, whatever
+    capabilities the runner kept.
+    """
     pid = os.fork()
     if pid == 0:
         try:
             become(uid)
             os.kill(-1, signal.SIGKILL)  # every process this uid may signal: its own, except this one
+            remove_files_of(uid)
         finally:
             os._exit(0)
     os.waitpid(pid, 0)
     if _STAGE is not None:
         shutil.rmtree(_STAGE / f"work-{uid}", ignore_errors=True)
+
+
+#: the folders every uid may write to: a sandbox's files there are removed when it ends
+SHARED_WRITABLE = ("/tmp", "/var/tmp", "/dev/shm", "/run/lock", "/dev/mqueue")
+
+
+def remove_files_of(uid: int, roots: tuple[str, ...] = SHARED_WRITABLE) -> None:
+    """Remove every file and folder owned by ``uid`` in the world-writable folders under ``roots``.
+
+    A throwaway uid can create files only where everyone may write: the roots and any
+    world-writable folder inside them (searched, never through a symbolic link). What it owns is
+    removed whole (``shutil.rmtree`` does not follow links); nothing of another uid is touched.
+    """
+    todo = [r for r in roots if os.path.isdir(r) and not os.path.islink(r)]
+    while todo:
+        try:
+            entries = list(os.scandir(todo.pop()))
+        except OSError:
+            continue
+        for entry in entries:
+            try:
+                st = entry.stat(follow_symlinks=False)
+            except OSError:
+                continue
+            if st.st_uid == uid:
+                if stat.S_ISDIR(st.st_mode):
+                    shutil.rmtree(entry.path, ignore_errors=True)
+                else:
+                    with contextlib.suppress(OSError):
+                        os.unlink(entry.path)
+            elif stat.S_ISDIR(st.st_mode) and st.st_mode & stat.S_IWOTH:
+                todo.append(entry.path)
 
 
 def _probe(mode: str) -> bool:
