@@ -12,7 +12,10 @@ of the float64 session and 16 steps of the float32 session (``Simulation.advance
 frame). Reported per spring and step: medians of the repeats, and the medians (min-max) of the
 per-repeat ratios float32 / float64 and float32 / float32 floor, with the load average before
 and after each size. Also the largest difference of the positions after the timed frames,
-relative to the cloth's size. Written to ``benchmarks/float32.json``. Nothing here is a test.
+relative to the cloth's size. Then the default path: a session of each precision with default
+options (all threads), ``advance(16)`` timed in wall-clock time, interleaved with the others:
+``default_ns_per_spring_step`` (issue 38's float32 goal is per spring-step of what a user gets).
+Written to ``benchmarks/float32.json``. Nothing here is a test.
 """
 
 from __future__ import annotations
@@ -62,6 +65,8 @@ def compare(n: int, repeats: int) -> dict:
     m = next(e for e in scene.system.effects if isinstance(e, Springs)).kernel_params()[0].size
     sims = {d: mslab.Simulation(scene, "symplectic_euler", dt=DT, backend="numba", threads=1, dtype=d,
                                 check_stability=False) for d in ("float64", "float32")}
+    defaults = {d: mslab.Simulation(scene, "symplectic_euler", dt=DT, backend="numba", dtype=d,
+                                    check_stability=False) for d in ("float64", "float32")}
     floor = floor_kernel()
     arrays = {d: np.random.default_rng(0).uniform(0.5, 2.0, m).astype(d) for d in ("float64", "float32")}
     outs = {d: np.empty_like(a) for d, a in arrays.items()}
@@ -72,16 +77,24 @@ def compare(n: int, repeats: int) -> dict:
     steps = {"floor64": 1, "floor32": 1, "float64": SUBSTEPS, "float32": SUBSTEPS}
     for call in calls.values():
         call()
+    for sim in defaults.values():
+        sim.advance(SUBSTEPS)
+    wall: dict[str, list[float]] = {d: [] for d in defaults}
     number = max(1, int(0.02 * 3e8 / (m * SUBSTEPS)))
     times: dict[str, list[float]] = {k: [] for k in calls}
     load_before = os.getloadavg()
-    with jit.threads(1):
-        for _ in range(repeats):
+    for _ in range(repeats):
+        with jit.threads(1):
             for name, call in calls.items():
                 t = time.process_time()
                 for _ in range(number):
                     call()
                 times[name].append((time.process_time() - t) / number / steps[name] / m * 1e9)
+        for d, sim in defaults.items():
+            t = time.perf_counter()
+            for _ in range(number):
+                sim.advance(SUBSTEPS)
+            wall[d].append((time.perf_counter() - t) / number / SUBSTEPS / m * 1e9)
     x64, x32 = sims["float64"].state.x, sims["float32"].state.x
     size = float(np.ptp(scene.state0.x, axis=0).max())
     return {"n": n, "springs": m, "steps_each": sims["float32"].step, "repeats": repeats,
@@ -89,6 +102,9 @@ def compare(n: int, repeats: int) -> dict:
             "float32_over_float64": _ratio(times["float32"], times["float64"]),
             "float32_over_floor32": _ratio(times["float32"], times["floor32"]),
             "float64_over_floor64": _ratio(times["float64"], times["floor64"]),
+            "threads": jit.numba().get_num_threads(),
+            "default_ns_per_spring_step": {d: statistics.median(w) for d, w in wall.items()},
+            "default_float32_range": [min(wall["float32"]), max(wall["float32"])],
             "max_position_difference_over_size": float(np.abs(x64 - x32).max() / size),
             "load_average_before": load_before, "load_average_after": os.getloadavg()}
 
@@ -103,10 +119,13 @@ def main() -> None:
         row = compare(n, args.repeats)
         rows.append(row)
         ns, r = row["ns_per_spring_step"], row["float32_over_float64"]
+        wall = row["default_ns_per_spring_step"]
         print(f"{n}x{n} ({row['springs']} springs): ns/spring-step f64 {ns['float64']:.2f} "
               f"f32 {ns['float32']:.2f} "
               f"floor64 {ns['floor64']:.2f} floor32 {ns['floor32']:.2f}; f32/f64 {r['median']:.3f} "
               f"({r['min']:.3f}-{r['max']:.3f}); f32/floor32 {row['float32_over_floor32']['median']:.2f}; "
+              f"default ({row['threads']} threads, wall) f64 {wall['float64']:.2f} "
+              f"f32 {wall['float32']:.2f}; "
               f"load {row['load_average_before'][0]:.2f}-{row['load_average_after'][0]:.2f}", flush=True)
     doc = {"machine": machine(), "rows": rows}
     (HERE / "float32.json").write_text(json.dumps(doc, indent=1) + "\n")

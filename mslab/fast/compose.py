@@ -101,11 +101,15 @@ def compile_module(module: ModuleType, kernels: Sequence[Callable]) -> None:
     names = ", ".join(k.__name__.removesuffix("_kernel") for k in kernels) or "no"
     for n, kern in enumerate(kernels):
         setattr(module, f"_k{n}", compiled(kern, f"the {kern.__name__}"))
-    for name, value in list(vars(module).items()):
-        if inspect.isfunction(value) and value.__module__ == module.__name__:
-            what = f"{WHAT.get(name, 'a helper of the stepping loops')} over the {names} kernels"
-            options = {} if name == "scene_forces" else {"error_model": "numpy"}
-            setattr(module, name, compiled(value, what, helpers=False, **options))
+    own = [(name, value) for name, value in vars(module).items()
+           if inspect.isfunction(value) and value.__module__ == module.__name__]
+    # a function with a parallel loop is compiled from a copy of the module's globals
+    # (mslab.jit._resolved): it comes last, when the functions it calls are compiled twins
+    own.sort(key=lambda item: "prange" in item[1].__code__.co_names)
+    for name, value in own:
+        what = f"{WHAT.get(name, 'a helper of the stepping loops')} over the {names} kernels"
+        options = {} if name == "scene_forces" else {"error_model": "numpy"}
+        setattr(module, name, compiled(value, what, helpers=False, **options))
 
 
 def _key(kernels: Sequence[Callable]) -> tuple:

@@ -15,7 +15,10 @@ The loops are lean: forces accumulate into a scratch array ``f`` that holds the
 scene's constant forces ``f0`` between uses (gravity: see :class:`mslab.fast.ForceModel`),
 restored by each pass that reads ``f``, so there is neither a zeroing nor a gravity pass;
 a kick, the following drift and the blow-up test of the step share one pass over the
-particles; the acceleration ``a = f / m`` is formed in that pass, not stored. Passes over
+particles; the acceleration ``a = f / m`` is formed in that pass, not stored. On a big scene
+that pass of the splitting loop (:func:`_particle_pass`) runs on all threads, over the parts
+``cuts`` of :func:`mslab.fast.model.particle_cuts`: every entry gets the same operations
+whichever thread takes it, so the states are bitwise the same on any number of threads. Passes over
 particles run on flat views of the ``(n_particles, dim)`` arrays, with the inverse mass
 repeated per coordinate (``w``), branch-free inside and without zero-division checks
 (``error_model="numpy"``): numba vectorises them, which it does not do for the
@@ -31,10 +34,18 @@ from __future__ import annotations
 
 import numpy as np
 
+from mslab.jit import prange
+
 OK = 0
 BLOWUP = 1
 VERLET = 2
 LEAPFROG = 3
+
+#: the particle passes of the splitting loop (:func:`_particle_pass`)
+KICK = 0
+KICK_KEEP = 1
+KICK_WITH = 2
+DRIFT = 3
 
 
 def rhs(x, v, a, w, f0, params):
@@ -101,8 +112,46 @@ def _kick_with(xf, vf, af, h, hd, limit):
     return count
 
 
+def _particle_pass(code, xf, vf, ff, f0f, w, maf, h, hd, limit, cuts):
+    """Do one pass over the particles, in parts on all threads; return the count of bad entries.
+
+    ``code`` picks :func:`_kick`, :func:`_kick_keep`, :func:`_kick_with` or :func:`_drift`.
+    A drift counts none. With more than one part in ``cuts`` (entries ``cuts[p]:cuts[p+1]``)
+    the parts run on all threads (numba's ``prange``); a pass is elementwise, so each entry
+    gets the same operations on any number of threads.
+    Cost: ``O(n_particles dim)``; span ``O(n_particles dim / n_threads)``, one parallel
+    launch (tens of microseconds with sleeping threads: :func:`mslab.fast.model.particle_cuts`
+    keeps small scenes on the calling thread).
+    """
+    parts = cuts.shape[0] - 1
+    if parts == 1:
+        return _part(code, xf, vf, ff, f0f, w, maf, h, hd, limit)
+    bad = np.empty(parts, np.int64)
+    for p in prange(parts):
+        lo = cuts[p]
+        hi = cuts[p + 1]
+        bad[p] = _part(code, xf[lo:hi], vf[lo:hi], ff[lo:hi], f0f[lo:hi], w[lo:hi], maf[lo:hi],
+                       h, hd, limit)
+    count = 0
+    for p in range(parts):
+        count += bad[p]
+    return count
+
+
+def _part(code, xf, vf, ff, f0f, w, maf, h, hd, limit):
+    """Do the pass ``code`` of :func:`_particle_pass` over these entries (each pass its own loop)."""
+    if code == KICK:
+        return _kick(xf, vf, ff, f0f, w, h, hd, limit)
+    if code == KICK_KEEP:
+        return _kick_keep(xf, vf, ff, f0f, w, h, hd, maf, limit)
+    if code == KICK_WITH:
+        return _kick_with(xf, vf, maf, h, hd, limit)
+    _drift(xf, vf, hd)
+    return 0
+
+
 def run_explicit_rk(x, v, dissipated, A, b, dt, step, n_steps, saved, k, xs, vs, ds, limit,
-                    w, f0, params):
+                    cuts, w, f0, params):
     """Take steps of an explicit Runge-Kutta tableau (notes, eqs. 16-20), ``y = (x, v)``, ``F = (v, a)``.
 
     ``Y_s = y_n + h sum_{r<s} A_sr K_r``, ``y_{n+1} = y_n + h sum_s b_s K_s``; the dissipated
@@ -207,7 +256,7 @@ def _kick_rk(x, xf, vf, vi, f, f0f, w, acc, pws, kA, kb, h, hd, limit, params):
 
 
 def run_splitting(x, v, dissipated, drift, kick, reuse, kA, kb, mem_a, mem_p,
-                  dt, step, n_steps, saved, k, xs, vs, ds, limit, w, f0, params):
+                  dt, step, n_steps, saved, k, xs, vs, ds, limit, cuts, w, f0, params):
     """Take steps of a drift/kick splitting (``mslab/integrators/families/splitting.py``).
 
     ``x += a_0 h v; v += b_0 h a; x += a_1 h v; ...; x += a_k h v`` with ``a = drift``,
@@ -216,7 +265,8 @@ def run_splitting(x, v, dissipated, drift, kick, reuse, kA, kb, mem_a, mem_p,
     A kick is one step of the explicit tableau ``(kA, kb)`` on ``v' = a(x, v)`` with x
     fixed: with one stage (forces independent of v, or order 1) the plain kick ``v += b h a``.
     A kick, the drift after it and the blow-up test are one pass (the test counts at the
-    last kick only).
+    last kick only). The passes without stages run on all threads over the parts ``cuts``
+    (:func:`_particle_pass`).
     """
     n, dim = x.shape
     size = n * dim
@@ -238,25 +288,25 @@ def run_splitting(x, v, dissipated, drift, kick, reuse, kA, kb, mem_a, mem_p,
         work = 0.0
         bad = 0
         if drift[0] != 0.0:
-            _drift(xf, vf, dt * drift[0])
+            _particle_pass(DRIFT, xf, vf, ff, f0f, w, maf, 0.0, dt * drift[0], limit, cuts)
         for st in range(nk):
             h = dt * kick[st]
             hd = dt * drift[st + 1]
             last = st == nk - 1
             if st == 0 and reuse:  # a from the previous step's last kick
                 pw = p_last
-                bad = _kick_with(xf, vf, maf, h, hd, limit)
+                bad = _particle_pass(KICK_WITH, xf, vf, ff, f0f, w, maf, h, hd, limit, cuts)
             elif ns > 1:  # velocity-dependent forces: one step of (kA, kb) in v, x fixed
                 pw, bad = _kick_rk(x, xf, vf, vi, f, f0f, w, acc, pws, kA, kb, h, hd, limit, params)
                 n_force += ns
             elif reuse and last:
                 pw = scene_forces(x, v, f, params)
                 n_force += 1
-                bad = _kick_keep(xf, vf, ff, f0f, w, h, hd, maf, limit)
+                bad = _particle_pass(KICK_KEEP, xf, vf, ff, f0f, w, maf, h, hd, limit, cuts)
             else:  # the explicit kick: forces, then kick + drift + test in one pass
                 pw = scene_forces(x, v, f, params)
                 n_force += 1
-                bad = _kick(xf, vf, ff, f0f, w, h, hd, limit)
+                bad = _particle_pass(KICK, xf, vf, ff, f0f, w, maf, h, hd, limit, cuts)
             work += h * pw
             p_last = pw
         dissipated = dissipated + work
@@ -271,7 +321,7 @@ def run_splitting(x, v, dissipated, drift, kick, reuse, kA, kb, mem_a, mem_p,
 
 
 def run_two_step(method, x, v, dissipated, mem_x, mem_a, mem_p, dt, step, n_steps, saved, k,
-                 xs, vs, ds, limit, velocity_dependent, w, f0, params):
+                 xs, vs, ds, limit, velocity_dependent, cuts, w, f0, params):
     """Take steps of Verlet and leapfrog (``integrators/families/two_step.py``, eqs. 21-26 of the notes).
 
     One force evaluation ``a = a(X, V)`` per step:

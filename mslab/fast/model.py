@@ -13,6 +13,28 @@ if TYPE_CHECKING:
     from mslab.system import System
 
 
+#: entries (particles x dimensions) from which a particle pass of the compiled loops runs on all
+#: threads: below it the launch of the parallel loop (tens of microseconds when the threads
+#: sleep) costs more than half of the pass saves (benchmarks/RESULTS.md, "Two cores")
+MIN_ENTRIES_PARALLEL = 100_000
+#: most parts of a particle pass (32 keep up to 32 threads busy)
+MAX_PARTS = 32
+
+
+def particle_cuts(size: int) -> np.ndarray:
+    """Return the part boundaries of a pass over ``size`` entries (particles x dimensions).
+
+    ``[0, size]`` (one part) below :data:`MIN_ENTRIES_PARALLEL`; else :data:`MAX_PARTS` parts
+    of about equal size, each starting at a multiple of 16 entries (a cache line of float32).
+    From the size alone, though the pass is elementwise: any cut gives the same bits.
+    """
+    if size < MIN_ENTRIES_PARALLEL:
+        return np.array([0, size], dtype=np.int64)
+    cuts = (np.arange(MAX_PARTS + 1, dtype=np.int64) * size // MAX_PARTS) // 16 * 16
+    cuts[-1] = size
+    return cuts
+
+
 def kernel_reason(system: System) -> str | None:
     """Say why the effects of ``system`` cannot be compiled (None: every effect has a kernel)."""
     missing = [e.name for e in system.effects if getattr(e, "kernel", None) is None]
@@ -85,6 +107,8 @@ class ForceModel:
         ``1/m`` (0 for pinned particles).
     w : ndarray, shape (n_particles * dim,)
         ``inv_mass`` repeated per coordinate (the loops' flat passes).
+    cuts : ndarray of int64
+        The parts of those passes (:func:`particle_cuts`): more than one runs them on all threads.
     module : module
         The compiled loops for these kernels (:func:`mslab.fast.compose.module_for`).
     dtype : numpy dtype
@@ -108,6 +132,7 @@ class ForceModel:
         self.params = tuple(tuple(_param(p, self.dtype) for p in e.kernel_params()) for e in varying)
         self.inv_mass = np.ascontiguousarray(system.inv_mass, dtype=self.dtype)
         self.w = np.repeat(self.inv_mass, system.dim)
+        self.cuts = particle_cuts(self.w.size)
         self.module = compose.module_for(self.kernels)
 
     def rhs(self, x: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, float]:

@@ -120,7 +120,7 @@ class Stepper:
     def _run(self, x: np.ndarray, v: np.ndarray, dissipated: float, mem: tuple, common: tuple):
         """One call of the family's loop; ``common`` = (dt, step, stop, saved, k, xs, vs, ds, limit)."""
         mod, ig, system = self.model.module, self.integrator, self.system
-        model = (self.model.w, self.model.f0, self.model.params)
+        model = (self.model.cuts, self.model.w, self.model.f0, self.model.params)
         if self.loop == "explicit_rk":
             A, b = self.arrays
             return mod.run_explicit_rk(x, v, dissipated, A, b, *common, *model)
