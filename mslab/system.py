@@ -172,9 +172,14 @@ class System:
         free = ~self.pinned
         return float(0.5 * np.sum(self.mass[free, None] * v[free] ** 2))
 
-    def potential_energy(self, x: np.ndarray) -> float:
-        """Sum of the potential energies of the conservative effects."""
-        return float(sum(e.energy(x) for e in self.effects if e.conservative))
+    def potential_energy(self, x: np.ndarray, compiled: bool = False) -> float:
+        """Sum of the potential energies of the conservative effects.
+
+        ``compiled``: each effect's ``compiled_energy`` (the ledger check of a compiled run;
+        round-off apart the same). Saved samples always use the numpy ``energy``.
+        """
+        return float(sum(e.compiled_energy(x) if compiled else e.energy(x)
+                         for e in self.effects if e.conservative))
 
     def dissipated_power(self, x: np.ndarray, v: np.ndarray) -> float:
         """Power (>= 0) removed by dissipative effects at (x, v). Not counted."""

@@ -218,6 +218,14 @@ class Effect:
         """Potential energy (0 unless conservative)."""
         return 0.0
 
+    def compiled_energy(self, x: np.ndarray) -> float:
+        """:meth:`energy` for the ledger check of a compiled run (default: the numpy code).
+
+        An effect whose energy costs enough to matter (springs) overrides it with a compiled
+        loop of the same equation (equal to round-off, tested).
+        """
+        return self.energy(x)
+
     def power(self, x: np.ndarray, v: np.ndarray) -> float:
         """Dissipated power, >= 0 (0 unless dissipative)."""
         return 0.0

@@ -16,7 +16,12 @@ from mslab.effects.base import Body, BuildContext, Builder, Effect, HookeSprings
 from mslab.effects.registry import register
 from mslab.effects.schema import Key, check_keys
 from mslab.effects.spring_batches import batches, run_flags, segments
-from mslab.effects.spring_kernels import scatter_pair_blocks, spring_jacobian_kernel, spring_kernel
+from mslab.effects.spring_kernels import (
+    scatter_pair_blocks,
+    spring_energy_kernel,
+    spring_jacobian_kernel,
+    spring_kernel,
+)
 from mslab.effects.spring_table import SPRING_KINDS, SpringTable
 
 if TYPE_CHECKING:  # scipy.sparse is imported on first use: `import mslab` stays cheap
@@ -165,6 +170,15 @@ class Springs(Effect):
         """Return the elastic energy ``sum_q k (l - L)^2 / 2``."""
         _, length, _ = self._geometry(x)
         return float(0.5 * np.sum(self.stiffness * (length - self.rest_length) ** 2))
+
+    def compiled_energy(self, x: np.ndarray) -> float:
+        """:meth:`energy` through :func:`spring_energy_kernel` (compiled; round-off apart the same)."""
+        from mslab.jit import available, compiled
+
+        if not available():
+            return self.energy(x)
+        x = np.ascontiguousarray(x, dtype=float)
+        return float(compiled(spring_energy_kernel)(x, self.i, self.j, self.stiffness, self.rest_length))
 
     def lengths(self, x: np.ndarray) -> np.ndarray:
         """Return the current spring lengths, shape (n_springs,)."""

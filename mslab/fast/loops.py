@@ -119,9 +119,8 @@ def _particle_pass(code, xf, vf, ff, f0f, w, maf, h, hd, limit, cuts):
     A drift counts none. With more than one part in ``cuts`` (entries ``cuts[p]:cuts[p+1]``)
     the parts run on all threads (numba's ``prange``); a pass is elementwise, so each entry
     gets the same operations on any number of threads.
-    Cost: ``O(n_particles dim)``; span ``O(n_particles dim / n_threads)``, one parallel
-    launch (tens of microseconds with sleeping threads: :func:`mslab.fast.model.particle_cuts`
-    keeps small scenes on the calling thread).
+    Cost ``O(n dim)``, span ``O(n dim / threads)`` and one launch (tens of microseconds with
+    sleeping threads: :func:`mslab.fast.model.particle_cuts` keeps small scenes on one).
     """
     parts = cuts.shape[0] - 1
     if parts == 1:
