@@ -14,9 +14,11 @@ if TYPE_CHECKING:
 
 
 #: entries (particles x dimensions) from which a particle pass of the compiled loops runs on all
-#: threads: below it the launch of the parallel loop (tens of microseconds when the threads
-#: sleep) costs more than half of the pass saves (benchmarks/RESULTS.md, "Two cores")
-MIN_ENTRIES_PARALLEL = 100_000
+#: threads: about where the springs' loop does (a cloth of 160 x 160 particles; ``MIN_SPRINGS_PARALLEL``
+#: in mslab.effects.spring_batches), whose launches wake the threads anyway. Below, the pass's
+#: launch (tens of microseconds when the threads sleep) costs what it saves. Measured idle, two
+#: threads / one: 180 x 180 cloth 1.76 with the pass in parts, 1.47 without (benchmarks/RESULTS.md)
+MIN_ENTRIES_PARALLEL = 75_000
 #: most parts of a particle pass (32 keep up to 32 threads busy)
 MAX_PARTS = 32
 
