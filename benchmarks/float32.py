@@ -52,6 +52,19 @@ def _ratio(num: list[float], den: list[float]) -> dict:
     return {"median": statistics.median(r), "min": min(r), "max": max(r)}
 
 
+def interleaved(calls: dict, steps: dict, m: int, repeats: int) -> dict[str, list[float]]:
+    """CPU times, ns per spring and step, of ``calls`` (``steps[name]`` steps each), interleaved."""
+    number = max(1, int(0.02 * 3e8 / (m * SUBSTEPS)))
+    times: dict[str, list[float]] = {k: [] for k in calls}
+    for _ in range(repeats):
+        for name, call in calls.items():
+            t = time.process_time()
+            for _ in range(number):
+                call()
+            times[name].append((time.process_time() - t) / number / steps[name] / m * 1e9)
+    return times
+
+
 def compare(n: int, repeats: int) -> dict:
     """Interleaved CPU times per spring-step of both floors and both precisions on one thread."""
     import mslab
@@ -72,16 +85,9 @@ def compare(n: int, repeats: int) -> dict:
     steps = {"floor64": 1, "floor32": 1, "float64": SUBSTEPS, "float32": SUBSTEPS}
     for call in calls.values():
         call()
-    number = max(1, int(0.02 * 3e8 / (m * SUBSTEPS)))
-    times: dict[str, list[float]] = {k: [] for k in calls}
     load_before = os.getloadavg()
     with jit.threads(1):
-        for _ in range(repeats):
-            for name, call in calls.items():
-                t = time.process_time()
-                for _ in range(number):
-                    call()
-                times[name].append((time.process_time() - t) / number / steps[name] / m * 1e9)
+        times = interleaved(calls, steps, m, repeats)
     x64, x32 = sims["float64"].state.x, sims["float32"].state.x
     size = float(np.ptp(scene.state0.x, axis=0).max())
     return {"n": n, "springs": m, "steps_each": sims["float32"].step, "repeats": repeats,
