@@ -55,6 +55,19 @@ def _ratio(num: list[float], den: list[float]) -> dict:
     return {"median": statistics.median(r), "min": min(r), "max": max(r)}
 
 
+def interleaved(calls: dict, steps: dict, m: int, repeats: int) -> dict[str, list[float]]:
+    """CPU times, ns per spring and step, of ``calls`` (``steps[name]`` steps each), interleaved."""
+    number = max(1, int(0.02 * 3e8 / (m * SUBSTEPS)))
+    times: dict[str, list[float]] = {k: [] for k in calls}
+    for _ in range(repeats):
+        for name, call in calls.items():
+            t = time.process_time()
+            for _ in range(number):
+                call()
+            times[name].append((time.process_time() - t) / number / steps[name] / m * 1e9)
+    return times
+
+
 def compare(n: int, repeats: int) -> dict:
     """Interleaved CPU times per spring-step of both floors and both precisions on one thread."""
     import mslab

@@ -1,7 +1,7 @@
 """Runs of springs: the vectorised loop gives bitwise the forces of the plain loop.
 
 :func:`mslab.effects.spring_batches.segments` cuts each batch into runs (consecutive springs
-``(a + s, b + s)``, ``b > a``) and plain segments; :func:`mslab.effects.spring_kernels.spring_run`
+``(a + s, b + s)``, ``b > a``) and plain segments; :func:`mslab.effects.spring_kernels.spring_batch`
 sums a run in three vectorisable loops. The claim checked here is exact: for any springs (runs
 of every length, either orientation, zero-length springs, repeated particles, random pairs),
 the kernel with runs returns the same force bits as the same kernel told that nothing is a run

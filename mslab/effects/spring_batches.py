@@ -109,12 +109,12 @@ def segments(i: np.ndarray, j: np.ndarray, ranges: np.ndarray, min_run: int = MI
     A *run* is a stretch of consecutive springs ``(a + s, b + s)``, ``s = 0 .. m-1``, with
     ``b > a`` (a row of structural, shear or bend springs of a mesh generator): its ends are
     consecutive particles, so its loop reads and writes contiguous memory and the compiler
-    vectorises it (:func:`mslab.effects.spring_kernels.spring_run`). Everything else is a
+    vectorises it (:func:`mslab.effects.spring_kernels.spring_batch`). Everything else is a
     plain segment, summed spring by spring (:func:`~mslab.effects.spring_kernels.spring_range`).
     Segment ``s`` is springs ``bounds[s]:bounds[s+1]``, a run if ``run[s]``; batch ``r`` is
     segments ``batch_segments[r]:batch_segments[r+1]``. Runs shorter than ``min_run`` are
     plain; longer than ``max_run`` are cut in pieces of equal length. The springs keep their
-    order, and so does every particle's sum (``spring_run`` adds the ``j`` ends first:
+    order, and so does every particle's sum (``spring_batch`` adds the ``j`` ends first:
     ``b > a``), so the forces are bitwise those of one loop over the batch. Cost
     ``O(n_springs)``, once per scene.
     """
@@ -152,7 +152,7 @@ RUN, SAME_STIFFNESS = 1, 2
 def run_flags(bounds: np.ndarray, run: np.ndarray, stiffness: np.ndarray, damping: np.ndarray) -> np.ndarray:
     """Return ``run`` with the bit :data:`SAME_STIFFNESS` set on the runs that have one stiffness and damping.
 
-    Every row of a mesh generator's cloth has; :func:`mslab.effects.spring_kernels.spring_run`
+    Every row of a mesh generator's cloth has; :func:`mslab.effects.spring_kernels.spring_batch`
     then holds the two values in registers instead of loading them spring by spring. "One
     value" is bitwise (``0.0`` and ``-0.0`` differ), so the forces are bitwise those of the
     per-spring values. (Rest lengths computed from a mesh's positions differ in their last

@@ -58,32 +58,78 @@ def spring_batch(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: 
                  bounds: np.ndarray, run: np.ndarray, first: int, last: int) -> float:
     """Add the forces of segments ``first:last`` (one batch) to ``f``; return their dissipated power.
 
-    Runs go through :func:`spring_run` in three dimensions, the rest (and every segment in
-    one or two dimensions) through :func:`spring_range`: the same sums in the same order as
-    :func:`spring_range` over the whole batch, bitwise the same forces (the power differs by
-    round-off: a run sums it in lanes).
+    Plain segments (and every segment in one or two dimensions) go through
+    :func:`spring_range`. A *run* in 3D (springs ``start:stop`` joining particles ``a + s`` and
+    ``b + s``, ``b > a``: :func:`mslab.effects.spring_batches.segments`) is summed here in
+    loops over contiguous memory that the compiler vectorises (square roots and divisions
+    several at a time): :func:`run_pair` writes the pair forces ``f_q`` into ``pair`` (and the
+    powers into ``rates``), then ``+f_q`` goes into the ``i`` ends and ``-f_q`` into the ``j``
+    ends, a particle with both receiving ``-f`` of spring ``p - b`` before ``+f`` of spring
+    ``p - a``: in spring order, so the forces are bitwise those of :func:`spring_range` over the
+    batch. A run's powers are summed by :func:`lane_sum` (round-off apart from a sum in spring
+    order; the same on every machine and thread count). A damped run whose flags
+    (:func:`mslab.effects.spring_batches.run_flags`) say it has one stiffness and one damping
+    keeps them in registers (the same bits, fewer loads). The pair loop runs to a multiple of 8
+    springs where the particles and table entries after the run exist: the extra pairs are
+    computed and dropped, and the vectorised loop leaves no springs to a scalar loop (up to 7,
+    ~10 ns each, on rows of 63 and 127 springs).
+
+    A run is no call of its own: a compiled call with arrays costs numba's reference counting (a
+    call and an atomic operation per array and end, 8 arrays), about 120 ns a run, a third of a
+    63-spring row's time in cache (``benchmarks/RESULTS.md``). No array view is made per run
+    either: ``x``, ``v``, ``f`` are viewed flat once per batch and indexed by unsigned offsets
+    (numba then adds no test for negative indices, which would stop the vectoriser).
     """
     runs = x.shape[1] == 3
     longest = 0  # the longest run (at most about MAX_RUN springs): the buffers' size
     for s in range(first, last):
         if runs and run[s]:
             longest = max(longest, np.int64(bounds[s + 1]) - np.int64(bounds[s]))
-    pair = np.empty(3 * longest, x.dtype)  # a run's pair forces
-    rates = np.empty(longest if damped else 0, x.dtype)  # a run's dissipated powers
-    flat_x = x.reshape(x.size)  # flat views made once per batch, not per run (each view of an
-    flat_v = v.reshape(v.size)  # array costs reference counting: calls and atomic operations)
-    flat_f = f.reshape(f.size)
+    pair = np.empty(3 * (longest + 7), x.dtype)  # a run's pair forces (and up to 7 more, below)
+    rates = np.empty(longest + 7 if damped else 0, x.dtype)  # a run's dissipated powers
+    xs, vs, fs = x.reshape(x.size), v.reshape(v.size), f.reshape(f.size)  # flat views, once
+    zero = stiffness.dtype.type(0.0)
     power = 0.0
     for s in range(first, last):
-        start = bounds[s]
-        stop = bounds[s + 1]
-        if runs and run[s]:
-            power = spring_run(flat_x, flat_v, flat_f, stiffness, rest_length, damping, damped,
-                               np.int64(i[start]), np.int64(j[start]), np.int64(start), np.int64(stop),
-                               power, pair, rates, run[s])
-        else:
-            power = spring_range(x, v, f, i, j, stiffness, rest_length, damping, damped, start, stop,
-                                 power)
+        if not (runs and run[s]):
+            power = spring_range(x, v, f, i, j, stiffness, rest_length, damping, damped, bounds[s],
+                                 bounds[s + 1], power)
+            continue
+        q0 = np.uint64(bounds[s])  # spring q0 + t joins particles a + t and b + t
+        m = np.int64(bounds[s + 1]) - np.int64(bounds[s])
+        a, b = np.int64(i[q0]), np.int64(j[q0])
+        xa, xb = np.uint64(3 * a), np.uint64(3 * b)  # x[a + t] starts at xa + 3 t, x[b + t] at xb + 3 t
+        # whole vectors: springs up to a multiple of 8 where the next particles and table entries
+        # exist, their pairs computed into the buffers and never added (no scalar remainder loop)
+        pad = (m + 7) // 8 * 8
+        if 3 * (b + pad) > xs.shape[0] or np.int64(q0) + pad > rest_length.shape[0]:
+            pad = m
+        if damped and (run[s] & 2) != 0:  # spring_batches.SAME_STIFFNESS: k and c in registers
+            k0, c0 = stiffness[q0], damping[q0]
+            for t in range(pad):
+                q = np.uint64(t)
+                run_pair(xs, vs, xa, xb, q, k0, rest_length[q0 + q], c0, 1, pair, rates)
+        elif damped:
+            for t in range(pad):
+                q = np.uint64(t)
+                run_pair(xs, vs, xa, xb, q, stiffness[q0 + q], rest_length[q0 + q], damping[q0 + q], 1,
+                         pair, rates)
+        else:  # (one stiffness in a register measured no faster here: the loads are not what bounds it)
+            for t in range(pad):
+                q = np.uint64(t)
+                run_pair(xs, xs, xa, xb, q, stiffness[q0 + q], rest_length[q0 + q], zero, 0, pair, rates)
+        if damped:
+            power += lane_sum(rates, m)
+        # f[a + t] += pair[t] and f[b + t] -= pair[t], the j end first where a particle has both ends
+        shift = 3 * (b - a)
+        size = 3 * m
+        for t in range(min(shift, size)):  # particles with an i end only
+            fs[xa + np.uint64(t)] += pair[np.uint64(t)]
+        for t in range(shift, size):  # both ends: -f of spring p - b, then +f of spring p - a
+            e = xa + np.uint64(t)
+            fs[e] = (fs[e] - pair[np.uint64(t - shift)]) + pair[np.uint64(t)]
+        for t in range(max(shift, size), shift + size):  # a j end only
+            fs[xa + np.uint64(t)] -= pair[np.uint64(t - shift)]
     return power
 
 
@@ -152,71 +198,12 @@ def pair_scale(dx: float, dy: float, dz: float, rate: float, stiffness: float, r
     return s, zero
 
 
-def spring_run(x: np.ndarray, v: np.ndarray, f: np.ndarray, stiffness: np.ndarray,
-               rest_length: np.ndarray, damping: np.ndarray, damped: int, a: int, b: int,
-               start: int, stop: int, power: float, pair: np.ndarray, rates: np.ndarray,
-               flags: int = 1) -> float:
-    """Add the forces of a run of springs in 3D to ``f``; return ``power`` plus their dissipated power.
-
-    ``x``, ``v``, ``f`` are the flat views (``3 n``) of the ``(n, 3)`` arrays. Springs
-    ``start:stop`` join particles ``a + s`` and ``b + s`` (``s = 0 .. m-1``, ``b > a``,
-    :func:`mslab.effects.spring_batches.segments`). :func:`pair_scale` for each, in
-    loops over contiguous memory that the compiler vectorises (square roots and divisions
-    several at a time): the pair forces ``f_q`` into ``pair`` (and the powers into ``rates``),
-    then ``+f_q`` into the ``i`` ends and ``-f_q`` into the ``j`` ends, a particle with both
-    receiving ``-f`` of spring ``p - b`` before ``+f`` of spring ``p - a``: in spring order as
-    in :func:`spring_range`, so the forces are bitwise the same, in about half the time
-    (``benchmarks/RESULTS.md``). The powers are summed by :func:`lane_sum` (round-off apart
-    from a sum in spring order; the same on every machine and thread count). A damped run whose
-    ``flags`` (:func:`mslab.effects.spring_batches.run_flags`) say it has one stiffness and
-    one damping keeps them in registers (the same bits, fewer loads).
-
-    No array view is made here: every view costs numba's reference counting (a call and an
-    atomic operation each), which took a third of a 127-spring run. Indices are offsets from
-    the run's first entries, unsigned (numba then adds no test for negative indices, which
-    would stop the vectoriser). Cost: one square root and one division per spring, ``O(m)``
-    memory traffic.
-    """
-    m = stop - start
-    xa = np.uint64(3 * a)  # x[a + s] starts at xa + 3 s, x[b + s] at xb + 3 s
-    xb = np.uint64(3 * b)
-    first = np.uint64(start)
-    if damped:
-        if (flags & 2) != 0:  # spring_batches.SAME_STIFFNESS: k and c in registers
-            k0, c0 = stiffness[first], damping[first]
-            for s in range(m):
-                q = np.uint64(s)
-                run_pair(x, v, xa, xb, q, k0, rest_length[first + q], c0, 1, pair, rates)
-        else:
-            for s in range(m):
-                q = np.uint64(s)
-                run_pair(x, v, xa, xb, q, stiffness[first + q], rest_length[first + q],
-                         damping[first + q], 1, pair, rates)
-        power += lane_sum(rates, m)
-    else:  # (one stiffness in a register measured no faster here: the loads are not what bounds it)
-        zero = stiffness.dtype.type(0.0)
-        for s in range(m):
-            q = np.uint64(s)
-            run_pair(x, x, xa, xb, q, stiffness[first + q], rest_length[first + q], zero, 0, pair,
-                     rates)
-    # f[a + s] += pair[s] and f[b + s] -= pair[s], the j end first where a particle has both ends
-    shift = 3 * (b - a)
-    size = 3 * m
-    for t in range(min(shift, size)):  # particles with an i end only
-        f[xa + np.uint64(t)] += pair[np.uint64(t)]
-    for t in range(shift, size):  # both ends: -f of spring p - b, then +f of spring p - a
-        e = xa + np.uint64(t)
-        f[e] = (f[e] - pair[np.uint64(t - shift)]) + pair[np.uint64(t)]
-    for t in range(max(shift, size), shift + size):  # a j end only
-        f[xa + np.uint64(t)] -= pair[np.uint64(t - shift)]
-    return power
-
-
 def run_pair(x: np.ndarray, v: np.ndarray, xa: int, xb: int, s: int, k: float, rest: float, c: float,
              damped: int, out: np.ndarray, rates: np.ndarray) -> None:
     """Write spring ``s`` of a run: its pair force into ``out[3s:3s+3]``, its power into ``rates[s]``.
 
-    The body of :func:`spring_run`'s loops (inlined there; ``damped`` a constant of each loop);
+    The body of the run loops of :func:`spring_batch` (inlined there; ``damped`` a constant of
+    each loop);
     the ends' coordinates start at ``xa + 3 s`` and ``xb + 3 s`` of the flat ``x`` and ``v``.
     """
     t = np.uint64(3) * s

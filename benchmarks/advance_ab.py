@@ -1,0 +1,124 @@
+"""``Simulation.advance`` with the spring kernel before and after a change, in one process (issue 38).
+
+Usage::
+
+    .venv/bin/python benchmarks/advance_ab.py [--before main] [--repeats 15] [--sizes 64 128 300]
+
+``--before`` names a git revision whose ``mslab/effects/spring_kernels.py`` is loaded beside
+this tree's (from a temporary folder, as the module ``mslab._before_spring_kernels``) and
+given to a subclass of :class:`~mslab.effects.Springs` as its kernel; the compiled loop of
+:mod:`mslab.fast` composes whichever kernel the effect's class names, so two sessions of the
+frame loop's cloth (``benchmarks/frame_loop.py``: k = 1000, c = 10, symplectic Euler at
+dt = 1/960, one thread) differ only in the spring kernel. Generated modules and numba's cache
+go to a temporary ``MSLAB_CACHE_DIR`` (compiled afresh each run). Per size and precision:
+first the end states of both sessions after the warm-up, compared bitwise; then interleaved
+repeats, each timing in CPU time back to back the sqrt+div floor of that precision
+(``benchmarks/float32.py``), ``advance(16)`` of the old session and of the new. Reported:
+ns per spring-step (medians), new / old and new / floor (median, min-max of the per-repeat
+ratios), the load average before and after. Written to ``benchmarks/advance_ab.json``. Nothing
+here is a test.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent))
+
+from benchmarks.float32 import _ratio, floor_kernel, interleaved  # noqa: E402
+from benchmarks.frame_loop import DT, SUBSTEPS, frame_cloth  # noqa: E402
+from benchmarks.suite import machine  # noqa: E402
+
+
+def old_springs(rev: str, folder: Path) -> type:
+    """A subclass of ``Springs`` whose compiled kernel is revision ``rev``'s ``spring_kernel``."""
+    from mslab.effects import Springs
+
+    source = subprocess.run(["git", "show", f"{rev}:mslab/effects/spring_kernels.py"], cwd=HERE.parent,
+                            capture_output=True, text=True, check=True).stdout
+    path = folder / "_before_spring_kernels.py"
+    path.write_text(source)
+    name = "mslab._before_spring_kernels"
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module  # the generated loop imports the kernel by its module's name
+    spec.loader.exec_module(module)
+    return type("SpringsBefore", (Springs,), {"kernel": staticmethod(module.spring_kernel)})
+
+
+def compare(before: type, n: int, dtype: str, repeats: int) -> dict:
+    """Bitwise end states, then interleaved CPU times of the floor, the old and the new session."""
+    import mslab
+    from mslab import jit
+    from mslab.effects import Springs
+
+    sims = {}
+    for name in ("old", "new"):
+        scene = frame_cloth(n)
+        springs = next(e for e in scene.system.effects if isinstance(e, Springs))
+        if name == "old":
+            springs.__class__ = before
+        sims[name] = mslab.Simulation(scene, "symplectic_euler", dt=DT, backend="numba", threads=1,
+                                      dtype=dtype, check_stability=False)
+    m = springs.kernel_params()[0].size
+    floor = floor_kernel()
+    a = np.random.default_rng(0).uniform(0.5, 2.0, m).astype(dtype)
+    out = np.empty_like(a)
+    calls = {"floor": lambda: floor(a, out), "old": lambda: sims["old"].advance(SUBSTEPS),
+             "new": lambda: sims["new"].advance(SUBSTEPS)}
+    steps = {"floor": 1, "old": SUBSTEPS, "new": SUBSTEPS}
+    with jit.threads(1):
+        for call in calls.values():
+            call()
+        bitwise = all(np.asarray(getattr(sims["old"].state, k)).tobytes()
+                      == np.asarray(getattr(sims["new"].state, k)).tobytes() for k in ("x", "v"))
+        load_before = os.getloadavg()
+        times = interleaved(calls, steps, m, repeats)
+    return {"n": n, "springs": m, "dtype": dtype, "repeats": repeats, "bitwise_after_warm_up": bitwise,
+            "ns_per_spring_step": {k: statistics.median(t) for k, t in times.items()},
+            "new_over_old": _ratio(times["new"], times["old"]),
+            "new_over_floor": _ratio(times["new"], times["floor"]),
+            "old_over_floor": _ratio(times["old"], times["floor"]),
+            "load_average_before": load_before, "load_average_after": os.getloadavg()}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--before", default="main")
+    parser.add_argument("--repeats", type=int, default=15)
+    parser.add_argument("--sizes", type=int, nargs="+", default=[64, 128, 300])
+    parser.add_argument("--dtypes", nargs="+", default=["float64", "float32"])
+    args = parser.parse_args()
+    rows = []
+    with tempfile.TemporaryDirectory() as folder:
+        os.environ["MSLAB_CACHE_DIR"] = folder
+        os.environ["NUMBA_CACHE_DIR"] = folder
+        before = old_springs(args.before, Path(folder))
+        for n in args.sizes:
+            for dtype in args.dtypes:
+                row = compare(before, n, dtype, args.repeats)
+                rows.append(row)
+                ns, r, fl = row["ns_per_spring_step"], row["new_over_old"], row["new_over_floor"]
+                print(f"{n}x{n} {dtype}: bitwise {row['bitwise_after_warm_up']}, ns/spring-step old "
+                      f"{ns['old']:.2f} new {ns['new']:.2f} floor {ns['floor']:.2f}; "
+                      f"new/old {r['median']:.3f} "
+                      f"({r['min']:.3f}-{r['max']:.3f}); new/floor {fl['median']:.2f} old/floor "
+                      f"{row['old_over_floor']['median']:.2f}; load {row['load_average_before'][0]:.2f}-"
+                      f"{row['load_average_after'][0]:.2f}", flush=True)
+    doc = {"machine": machine(), "before": args.before, "rows": rows}
+    (HERE / "advance_ab.json").write_text(json.dumps(doc, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()
