@@ -98,11 +98,8 @@ def compare(n: int, repeats: int) -> dict:
     load_before = os.getloadavg()
     for _ in range(repeats):
         with jit.threads(1):
-            for name, call in calls.items():
-                t = time.process_time()
-                for _ in range(number):
-                    call()
-                times[name].append((time.process_time() - t) / number / steps[name] / m * 1e9)
+            for name, values in interleaved(calls, steps, m, 1).items():
+                times[name] += values
         for d, sim in defaults.items():
             t = time.perf_counter()
             for _ in range(number):
