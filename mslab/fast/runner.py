@@ -53,6 +53,7 @@ class Stepper:
         self.chunk = int(min(self.max_chunk, max(1, 10**7 // max(1, work * integrator.n_stages))))
         self._x = self._v = None
         self._mem = None
+        self._kick: tuple | None = None
         #: dissipated work of the loaded state (follows the steps)
         self.dissipated = 0.0
 
@@ -128,9 +129,12 @@ class Stepper:
             drift, kick = self.arrays
             mem_a, mem_p = mem
             reuse = bool(ig.fsal and not system.velocity_dependent)
-            kA, kb = (ig.kick_method.A, ig.kick_method.b) if system.velocity_dependent else _EULER
-            return mod.run_splitting(x, v, dissipated, drift, kick, reuse, np.ascontiguousarray(kA),
-                                     np.ascontiguousarray(kb), mem_a, mem_p, *common, *model)
+            if self._kick is None:  # the kick's tableau, looked up once (a registry lookup per call)
+                kick_method = ig.kick_method if system.velocity_dependent else None
+                kA, kb = (kick_method.A, kick_method.b) if kick_method is not None else _EULER
+                self._kick = (np.ascontiguousarray(kA), np.ascontiguousarray(kb))
+            return mod.run_splitting(x, v, dissipated, drift, kick, reuse, *self._kick, mem_a, mem_p,
+                                     *common, *model)
         mem_x, mem_a, mem_p = mem
         code = mod.VERLET if self.loop == "verlet" else mod.LEAPFROG
         return mod.run_two_step(code, x, v, dissipated, mem_x, mem_a, mem_p, *common,
