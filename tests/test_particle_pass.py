@@ -60,10 +60,17 @@ def test_parts_give_the_bits_of_one_part_on_any_thread_count(method, damped, mon
             assert np.array_equal(a, b)
 
 
-def test_the_splitting_loop_compiles_its_particle_pass_parallel():
-    """The pass is numba's parallel loop (the old loop had none: one core did a sixth of a 300² step)."""
-    sim = mslab.Simulation(generators.cloth(8, 8), "symplectic_euler", backend="numba")
-    sim.advance(1)
-    module = sim._loop.runner.model.module
-    assert module._particle_pass.targetoptions.get("parallel")
-    assert not module.run_splitting.targetoptions.get("parallel")
+def test_the_splitting_loop_compiles_its_particle_pass_parallel(monkeypatch):
+    """Above the threshold the pass is numba's parallel loop (the old loop had none: one core did a
+    sixth of a 300² step); below it the module has no parallel loop to compile (6-8 s cold)."""
+    modules = {}
+    for parts in (True, False):
+        monkeypatch.setattr(fast_model, "MIN_ENTRIES_PARALLEL", 0 if parts else 10**12)
+        sim = mslab.Simulation(generators.cloth(8, 8), "symplectic_euler", backend="numba")
+        sim.advance(1)
+        modules[parts] = sim._loop.runner.model.module
+    assert modules[True] is not modules[False]
+    assert modules[True]._particle_pass.targetoptions.get("parallel")
+    assert not modules[False]._particle_pass.targetoptions.get("parallel")
+    for module in modules.values():
+        assert not module.run_splitting.targetoptions.get("parallel")

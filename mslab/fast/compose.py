@@ -68,9 +68,24 @@ def _template() -> str:
     return text[: text.index(_MARKER)]
 
 
-def source(kernels: Sequence[Callable]) -> str:
-    """Return the generated module's text for these kernels, in summation order."""
-    lines = [_template().rstrip() + "\n", "", f"{_MARKER}"]
+#: the particle pass of a module for scenes below ``MIN_ENTRIES_PARALLEL`` (one part): the
+#: template's parallel version is replaced, so numba never compiles its parallel loop there
+#: (6-8 s of a cold compile of the splitting loop, measured)
+_ONE_PART = '''
+
+def _particle_pass(code, xf, vf, ff, f0f, w, maf, h, hd, limit, cuts):
+    """Do the pass ``code`` over all entries on the calling thread (a scene of one part)."""
+    return _part(code, xf, vf, ff, f0f, w, maf, h, hd, limit)
+'''
+
+
+def source(kernels: Sequence[Callable], parallel: bool = False) -> str:
+    """Return the generated module's text for these kernels, in summation order.
+
+    ``parallel``: the particle passes may run in parts on all threads (a scene of
+    :data:`mslab.fast.model.MIN_ENTRIES_PARALLEL` entries or more); else they are one part.
+    """
+    lines = [_template().rstrip() + "\n", "" if parallel else _ONE_PART, "", f"{_MARKER}"]
     for n, kern in enumerate(kernels):
         body = inspect.getsource(sys.modules[kern.__module__])  # the kernel and its helpers
         digest = hashlib.sha256(body.encode()).hexdigest()[:16]
@@ -112,8 +127,8 @@ def compile_module(module: ModuleType, kernels: Sequence[Callable]) -> None:
         setattr(module, name, compiled(value, what, helpers=False, **options))
 
 
-def _key(kernels: Sequence[Callable]) -> tuple:
-    return tuple((k.__module__, k.__qualname__) for k in kernels)
+def _key(kernels: Sequence[Callable], parallel: bool) -> tuple:
+    return tuple((k.__module__, k.__qualname__) for k in kernels) + (parallel,)
 
 
 def _path(text: str) -> tuple[str, Path]:
@@ -121,15 +136,15 @@ def _path(text: str) -> tuple[str, Path]:
     return name, cache_dir() / f"{name}.py"
 
 
-def state(kernels: Sequence[Callable]) -> str:
+def state(kernels: Sequence[Callable], parallel: bool = False) -> str:
     """Return where the loops for these kernels come from.
 
     ``"loaded"`` (in this process), ``"cached"`` (generated before: numba loads it from its
     cache) or ``"new"`` (numba compiles it: seconds).
     """
-    if _key(kernels) in _modules:
+    if _key(kernels, parallel) in _modules:
         return "loaded"
-    return "cached" if _path(source(kernels))[1].exists() else "new"
+    return "cached" if _path(source(kernels, parallel))[1].exists() else "new"
 
 
 def _write_once(path: Path, text: str) -> None:
@@ -153,12 +168,15 @@ def _write_once(path: Path, text: str) -> None:
             os.unlink(tmp)
 
 
-def module_for(kernels: Sequence[Callable]) -> ModuleType:
-    """Return the compiled loops for these kernels (generated, written and imported once per process)."""
-    key = _key(kernels)
+def module_for(kernels: Sequence[Callable], parallel: bool = False) -> ModuleType:
+    """Return the compiled loops for these kernels (generated, written and imported once per process).
+
+    ``parallel``: with the particle passes in parts on all threads (:func:`source`).
+    """
+    key = _key(kernels, parallel)
     if key in _modules:
         return _modules[key]
-    text = source(kernels)
+    text = source(kernels, parallel)
     name, path = _path(text)
     if not path.exists() or path.read_text(encoding="utf-8") != text:
         _write_once(path, text)

@@ -135,7 +135,7 @@ class ForceModel:
         self.inv_mass = np.ascontiguousarray(system.inv_mass, dtype=self.dtype)
         self.w = np.repeat(self.inv_mass, system.dim)
         self.cuts = particle_cuts(self.w.size)
-        self.module = compose.module_for(self.kernels)
+        self.module = compose.module_for(self.kernels, parallel=self.cuts.size > 2)
 
     def rhs(self, x: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, float]:
         """Return acceleration (n_particles, dim) and dissipated power: ``System.rhs`` compiled, uncounted."""
