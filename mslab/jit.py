@@ -97,6 +97,9 @@ def numba() -> Any:
         with protected("loading numba"):
             import numba  # noqa: F401
 
+            from mslab import lanes
+
+            lanes.register()
             _listen()
             _listening.append(True)
     return sys.modules["numba"]
@@ -120,6 +123,7 @@ def _resolved(function: Callable, options: dict, helpers: bool) -> tuple[Callabl
     becomes its :func:`compiled` twin, and
     :func:`prange` becomes numba's (``parallel=True`` is then added to the options), in a
     copy of the function whose globals differ only there: the module itself is unchanged.
+    A function marked ``mslab_overloaded`` keeps its numba overload (:mod:`mslab.lanes`).
     ``helpers=False`` leaves the helpers alone (a generated module whose functions are all
     replaced by their compiled twins: :func:`mslab.fast.compose.compile_module`).
     """
@@ -132,7 +136,8 @@ def _resolved(function: Callable, options: dict, helpers: bool) -> tuple[Callabl
             swaps[name] = numba().prange
             options = {**options, "parallel": True}
         elif (helpers and inspect.isfunction(value) and value is not function
-              and value.__module__.split(".")[0] == "mslab"):
+              and value.__module__.split(".")[0] == "mslab"
+              and not getattr(value, "mslab_overloaded", False)):
             helper_options = {k: v for k, v in options.items() if k != "parallel"}
             what = f"{value.__name__}, a helper of {function.__name__}"
             swaps[name] = compiled(value, what, **helper_options)

@@ -152,3 +152,38 @@ def test_lane_sum_is_a_sum(n):
     assert abs(total - math.fsum(values)) <= n * np.finfo(float).eps * math.fsum(values)
     ones = np.ones(n)
     assert compiled(lane_sum)(ones) == n  # integers are exact: no value lost or counted twice
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("n", [0, 5, 8, 15, 16, 91, 1000, 4093])
+def test_lane_sum_adds_in_its_stated_order(dtype, n):
+    """Compiled (the vector lanes of mslab.lanes), the sum is bitwise that of its stated order.
+
+    The reference is written here from the docstring: value s into lane s % 8 in float64, each
+    lane in index order, the tail into lane 0, then ((l0 + l1) + (l2 + l3)) + ((l4 + l5) + (l6 +
+    l7)). Values spanning 16 orders of magnitude make any other order round differently (also
+    checked: the reversed order differs for the long arrays), and a partial count reads no
+    value past it.
+    """
+    from mslab.effects.spring_kernels import lane_sum
+    from mslab.lanes import eight_lanes
+
+    rng = np.random.default_rng(n)
+    values = (rng.uniform(0.5, 1, n + 9) * 10.0 ** rng.uniform(-8, 8, n + 9)).astype(dtype)
+    lanes = [0.0] * 8
+    body = n - n % 8
+    for s in range(body):
+        lanes[s % 8] += float(values[s])
+    body_lanes = tuple(lanes)
+    for s in range(body, n):
+        lanes[0] += float(values[s])
+    expected = ((lanes[0] + lanes[1]) + (lanes[2] + lanes[3])) + ((lanes[4] + lanes[5]) + (lanes[6] + lanes[7]))
+    assert compiled(lane_sum)(values, n) == expected
+    numba = pytest.importorskip("numba")
+    vector = numba.njit(lambda v, stop: eight_lanes(v, stop))  # the overload of mslab.lanes
+    assert vector(values, body) == eight_lanes(values, body) == body_lanes
+    if n >= 1000:
+        backwards = 0.0
+        for s in range(n - 1, -1, -1):
+            backwards += float(values[s])
+        assert backwards != expected  # the data can tell one order from another

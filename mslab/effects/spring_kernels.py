@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from mslab.jit import prange
+from mslab.lanes import eight_lanes
 
 
 def spring_kernel(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: np.ndarray,
@@ -231,20 +232,12 @@ def lane_sum(values: np.ndarray, count: int = -1) -> float:
     ``values[s]`` goes into lane ``s % 8``: eight independent running sums instead of one
     (whose every addition waits for the previous: about 1 ns a value); the order is fixed by the
     code, never by the machine or the compiler (no reassociation is allowed), so the result is the
-    same everywhere.
+    same everywhere. The lanes of whole rows of eight are :func:`mslab.lanes.eight_lanes` (compiled:
+    one vector addition per row, the same additions in the same order), the rest goes to lane 0.
     """
     n = values.shape[0] if count < 0 else count
     body = n - n % 8
-    s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = 0.0
-    for q in range(0, body, 8):
-        s0 += values[q]
-        s1 += values[q + 1]
-        s2 += values[q + 2]
-        s3 += values[q + 3]
-        s4 += values[q + 4]
-        s5 += values[q + 5]
-        s6 += values[q + 6]
-        s7 += values[q + 7]
+    s0, s1, s2, s3, s4, s5, s6, s7 = eight_lanes(values, body)
     for q in range(body, n):
         s0 += values[q]
     return ((s0 + s1) + (s2 + s3)) + ((s4 + s5) + (s6 + s7))
