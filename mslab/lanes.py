@@ -30,13 +30,20 @@ def eight_lanes(values: np.ndarray, stop: int) -> tuple[float, ...]:
     """Return the eight sums ``sum(values[l:stop:8])``, ``l = 0..7``, in float64, each in index order.
 
     ``stop`` is a multiple of 8, at most ``values.size``. Cost ``O(stop)``; compiled, one vector
-    addition per eight values.
+    addition per eight values (C-contiguous float32 or float64 ``values``; others compile this
+    scalar loop).
     """
-    lanes = [0.0] * 8
+    s0 = s1 = s2 = s3 = s4 = s5 = s6 = s7 = 0.0
     for q in range(0, stop, 8):
-        for lane in range(8):
-            lanes[lane] += float(values[q + lane])
-    return tuple(lanes)
+        s0 += float(values[q])
+        s1 += float(values[q + 1])
+        s2 += float(values[q + 2])
+        s3 += float(values[q + 3])
+        s4 += float(values[q + 4])
+        s5 += float(values[q + 5])
+        s6 += float(values[q + 6])
+        s7 += float(values[q + 7])
+    return s0, s1, s2, s3, s4, s5, s6, s7
 
 
 eight_lanes.mslab_overloaded = True  # mslab.jit leaves it to its overload (no compiled twin of the loop)
@@ -44,6 +51,7 @@ eight_lanes.mslab_overloaded = True  # mslab.jit leaves it to its overload (no c
 
 def register() -> None:
     """Give :func:`eight_lanes` its compiled implementation (once, when numba is loaded)."""
+    import numba
     from llvmlite import ir
     from numba.core import cgutils, types
     from numba.extending import intrinsic, overload
@@ -51,6 +59,8 @@ def register() -> None:
     def supported(values: Any) -> bool:
         return (isinstance(values, types.Array) and values.ndim == 1 and values.layout == "C"
                 and values.dtype in (types.float32, types.float64))
+
+    scalar_lanes = numba.njit(eight_lanes)
 
     @intrinsic
     def vector_lanes(typingctx: Any, values: Any, stop: Any) -> Any:
@@ -83,6 +93,8 @@ def register() -> None:
 
     @overload(eight_lanes)
     def _eight_lanes(values, stop):  # noqa: ANN001, ANN202 (numba compares its signature, annotations too)
-        if supported(values) and isinstance(stop, types.Integer):
+        if not isinstance(stop, types.Integer):
+            return None
+        if supported(values):
             return lambda values, stop: vector_lanes(values, stop)
-        return None
+        return lambda values, stop: scalar_lanes(values, stop)  # other arrays: the scalar loop

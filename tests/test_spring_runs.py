@@ -161,7 +161,8 @@ def test_lane_sum_adds_in_its_stated_order(dtype, n):
 
     The reference is written here from the docstring: value s into lane s % 8 in float64, each
     lane in index order, the tail into lane 0, then ((l0 + l1) + (l2 + l3)) + ((l4 + l5) + (l6 +
-    l7)). Values spanning 16 orders of magnitude make any other order round differently (also
+    l7)), for contiguous arrays (the vector lanes) and strided ones (the scalar loop). Values
+    spanning 16 orders of magnitude make any other order round differently (also
     checked: the reversed order differs for the long arrays), and a partial count reads no
     value past it.
     """
@@ -177,8 +178,10 @@ def test_lane_sum_adds_in_its_stated_order(dtype, n):
     body_lanes = tuple(lanes)
     for s in range(body, n):
         lanes[0] += float(values[s])
-    expected = ((lanes[0] + lanes[1]) + (lanes[2] + lanes[3])) + ((lanes[4] + lanes[5]) + (lanes[6] + lanes[7]))
+    l0, l1, l2, l3, l4, l5, l6, l7 = lanes
+    expected = ((l0 + l1) + (l2 + l3)) + ((l4 + l5) + (l6 + l7))
     assert compiled(lane_sum)(values, n) == expected
+    assert compiled(lane_sum)(np.repeat(values, 2)[::2], n) == expected  # strided: the scalar loop, same sums
     numba = pytest.importorskip("numba")
     vector = numba.njit(lambda v, stop: eight_lanes(v, stop))  # the overload of mslab.lanes
     assert vector(values, body) == eight_lanes(values, body) == body_lanes
