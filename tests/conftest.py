@@ -1,9 +1,9 @@
 """Session set-up of the test suite: the Agg backend, and the order in which files are handed out.
 
-``make test`` runs ``tests/`` and the lessons under nbval in one ``pytest -n 2 --dist loadfile
+``make test`` runs ``tests/`` and the lessons under nbval in one ``pytest -n 3 --dist loadfile
 --no-loadscope-reorder`` session: xdist gives each worker a whole file at a time, in collection
 order. Collected in alphabetical order, the longest files (the browser test, the compiled fast
-path) would start last and end alone on one worker while the other idles. ``LONGEST_FIRST`` puts
+path) would start last and end alone on one worker while the others idle. ``LONGEST_FIRST`` puts
 them first (longest processing time first); every other file keeps its place after them. This
 changes only the order of files, never the order of the tests in a file (nbval's cells run top to
 bottom) and never what runs: a file missing from the list, or a list out of date, costs wall time,
