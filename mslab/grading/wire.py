@@ -148,6 +148,8 @@ def dumps(obj: Any) -> bytes:
 
 #: most containers (lists, tuples, dicts) one message may hold: bounds the decoder's memory
 MAX_CONTAINERS = 100_000
+#: every byte but the brackets (what :func:`loads` deletes to count the nesting)
+_NOT_BRACKETS = bytes(sorted(set(range(256)) - set(b"[]{}")))
 
 
 def loads(line: bytes, make_problem: Callable[[Any], Any] | None = None) -> Any:
@@ -163,7 +165,7 @@ def loads(line: bytes, make_problem: Callable[[Any], Any] | None = None) -> Any:
     if line.count(b"[") + line.count(b"{") > MAX_CONTAINERS:
         raise WireError(f"more than {MAX_CONTAINERS} lists or dicts")
     depth = 0
-    for byte in line.translate(None, delete=bytes(set(range(256)) - set(b"[]{}"))):
+    for byte in line.translate(None, delete=_NOT_BRACKETS):
         depth += 1 if byte in b"[{" else -1
         if depth > 3 * MAX_DEPTH + 4:
             raise WireError("nested too deeply")
