@@ -11,6 +11,10 @@ import numpy as np
 from mslab.checks import real
 
 
+#: most steps of one run: 2**53, beyond which ``n * dt`` no longer tells two steps apart in float64
+MAX_STEPS = float(2**53)
+
+
 def check_dt(dt: float) -> float:
     """Return ``dt`` as a float: TypeError unless a number (not a bool), ValueError unless finite and > 0."""
     return real("dt", dt, positive=True)
@@ -21,6 +25,9 @@ def step_count(t_end: float, dt: float) -> int:
     dt = check_dt(dt)
     t_end = real("t_end", t_end, positive=True)
     ratio = t_end / dt
+    if not ratio <= MAX_STEPS:  # (also an infinite ratio: a finite t_end over a tiny dt)
+        raise ValueError(f"t_end = {t_end:g} is {ratio:.3g} steps of dt = {dt:g}: more than a run can count "
+                         f"exactly ({MAX_STEPS:.3g}, where a float64 time stops telling the steps apart)")
     n = max(1, round(ratio))
     if abs(n - ratio) > 1e-9 * max(1.0, ratio):
         raise ValueError(f"t_end = {t_end:g} is not a whole number of steps of dt = {dt:g} "

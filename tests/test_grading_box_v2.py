@@ -22,9 +22,8 @@ from pathlib import Path
 import pytest
 
 from mslab.grading import box
-from mslab.grading.box import MAX_PROCESSES, NEEDED_V2, Box, describe, setup, teardown
+from mslab.grading.box import MAX_PROCESSES, NEEDED_V2, Box, Budget, describe, setup, teardown
 from mslab.grading.owner import PREFIX, Owned
-from mslab.grading.remote import Budget
 
 ENABLE = " ".join(f"+{c}" for c in NEEDED_V2)
 

@@ -2,7 +2,7 @@
 
 The runner measures the sandbox's CPU time (a cgroup file, or without a cgroup a walk of
 ``/proc``) only when a poll interval has passed since the last measurement
-(:meth:`mslab.grading.remote.Budget.exceeded`): a test of many quick calls then pays no
+(:meth:`mslab.grading.box.Budget.exceeded`): a test of many quick calls then pays no
 measurement per call. Here a student burns a fixed CPU time per call, many quick calls in a
 row: the limit must stop them within a poll interval of CPU after it is used up, and not
 before (each measured, not assumed), in the isolation this machine grades with and in the
@@ -16,7 +16,8 @@ import os
 import pytest
 
 from mslab.grading import isolation
-from mslab.grading.remote import POLL_CGROUP, POLL_PROC, Sandbox, Student, StudentError
+from mslab.grading.box import POLL_CGROUP, POLL_PROC
+from mslab.grading.remote import Sandbox, Student, StudentError
 
 BURNER = '''
 import time

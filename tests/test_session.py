@@ -102,6 +102,13 @@ def test_advance_by_time_and_to_the_end():
         sim.advance(1)
     with pytest.raises(ValueError, match="whole number of steps"):
         mslab.Simulation(scene(), "rk4", dt=1e-3).advance(t=0.0165)
+    # a finite t_end too far for float64 steps (t_end / dt infinite, or beyond 2**53): a ValueError
+    # naming it, never an OverflowError from round() (found by tests/test_contract_property.py)
+    for t_end in (1.797693134862316e306, 2.0**53 * 1e-3 * 4):
+        with pytest.raises(ValueError, match="more than a run can count"):
+            mslab.Simulation(scene(), "rk4", dt=1e-3, t_end=t_end)
+        with pytest.raises(ValueError, match="more than a run can count"):
+            mslab.Simulation(scene(), "rk4", dt=1e-3).advance(t=t_end)
 
 
 def test_open_session_saves_on_the_grid_and_shows_the_current_state():

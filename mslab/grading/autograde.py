@@ -23,14 +23,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from mslab.grading.box import describe
+from mslab.grading.box import describe, wall_backstop
 from mslab.grading.box import setup as setup_cgroups
 from mslab.grading.box import teardown as teardown_cgroups
 from mslab.grading.dispatch import RUNNER_SLACK, STOP, run_runner
 from mslab.grading.isolation import DESCRIPTION, detect, unreachable_for_others
 from mslab.grading.layout import HIDDEN, Exercise, expand_submissions, find_exercises, read_student_file
 from mslab.grading.owner import Owned, clean_abandoned, closed_to_others
-from mslab.grading.remote import PHRASES, set_not_dumpable, wall_backstop
+from mslab.grading.remote import PHRASES, set_not_dumpable
 from mslab.grading.report import Journal, fingerprint, format_report, gradebook_rows, item_key, printable
 from mslab.grading.unpack import Limits, unpack_zip
 
@@ -226,7 +226,7 @@ def grade(paths: Iterable[str | Path], source: str | Path, jobs: int | None = No
         Runners in parallel (default: number of cores).
     timeout : float
         CPU seconds per test (the student's calls of one test together, every process of
-        the sandbox counted), with a wall-clock backstop (``remote.wall_backstop``).
+        the sandbox counted), with a wall-clock backstop (``box.wall_backstop``).
     only : list of str, optional
         Grade only these exercise folders.
     isolation : {"auto", "bwrap", "namespaces", "rlimits"}

@@ -15,6 +15,8 @@ as another user inside its own cgroup when that is delegated to it (e.g. ``syste
 and makes the boxes its siblings (a leaf cannot be removed by the process inside it: the
 next grading removes those of graders that have ended, :mod:`mslab.grading.owner`).
 cgroup v1 (hybrid machines, root only): ``pids``, ``memory``, ``cpu`` and ``cpuacct`` hierarchies.
+
+A test's CPU-time limit on a box, with its wall-clock backstop, is a :class:`Budget`.
 """
 
 from __future__ import annotations
@@ -27,6 +29,11 @@ import time
 from pathlib import Path
 
 from mslab.grading.owner import PREFIX, is_abandoned
+
+#: the wall-clock backstop of a CPU-time limit L is WALL_FACTOR * L + WALL_SLACK seconds
+WALL_FACTOR, WALL_SLACK = 5.0, 10.0
+#: seconds between checks of the sandbox's CPU time (reading a cgroup / walking /proc)
+POLL_CGROUP, POLL_PROC = 0.05, 0.2
 
 #: the controllers a box needs, by cgroup version
 NEEDED_V2 = ("pids", "memory", "cpu")
@@ -273,6 +280,40 @@ class Box:
         for path in self.dirs.values():
             _rmdir(path)
         self.dirs = {}
+
+
+def wall_backstop(cpu_limit: float) -> float:
+    """Return the wall-clock limit behind a CPU-time limit: generous, so others' load never hits it."""
+    return WALL_FACTOR * cpu_limit + WALL_SLACK
+
+
+class Budget:
+    """A CPU-time limit on the whole sandbox, from now, with a wall-clock backstop."""
+
+    def __init__(self, box: Box, cpu_limit: float):
+        self.box, self.cpu_limit = box, float(cpu_limit)
+        self.cpu0 = box.cpu_seconds()
+        self.measured = time.monotonic()
+        self.wall_end = self.measured + wall_backstop(cpu_limit)
+        self.spent = 0.0
+
+    def exceeded(self, every: float = 0.0) -> str | None:
+        """``"cpu"`` or ``"wall"`` once a limit is hit, else None (measured by the runner itself).
+
+        The sandbox's CPU time is measured again only when ``every`` seconds of wall-clock time
+        have passed since the last measurement (0: always). A reply within ``every`` then costs
+        no measurement (a cgroup file read, or without a cgroup a walk of ``/proc``: 1-5 ms a
+        call on a busy machine, which made a test of many fast calls ten times slower); the CPU
+        time used since the last measurement, at most ``every`` seconds per process of the
+        sandbox, is counted at the next one, so a limit is found as late as it is while one
+        long call is polled (:data:`POLL_CGROUP`, :data:`POLL_PROC`).
+        """
+        now = time.monotonic()
+        if now - self.measured >= every:
+            self.spent, self.measured = self.box.cpu_seconds() - self.cpu0, now
+        if self.spent > self.cpu_limit:
+            return "cpu"
+        return "wall" if now >= self.wall_end else None
 
 
 def _tree_cpu(root: int) -> float:

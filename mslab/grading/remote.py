@@ -16,18 +16,13 @@ import resource
 import selectors
 import signal
 import subprocess
-import time
 from pathlib import Path
 
 from mslab.grading import isolation
-from mslab.grading.box import MAX_PROCESSES, Box
+from mslab.grading.box import MAX_PROCESSES, POLL_CGROUP, POLL_PROC, Box, Budget, wall_backstop
 from mslab.grading.wire import WireError, dumps, loads
 
 PR_SET_PDEATHSIG, PR_SET_DUMPABLE, PR_CAPBSET_DROP, PR_SET_NO_NEW_PRIVS = 1, 4, 24, 38
-#: the wall-clock backstop of a CPU-time limit L is WALL_FACTOR * L + WALL_SLACK seconds
-WALL_FACTOR, WALL_SLACK = 5.0, 10.0
-#: seconds between checks of the sandbox's CPU time (reading a cgroup / walking /proc)
-POLL_CGROUP, POLL_PROC = 0.05, 0.2
 #: largest single reply accepted from the sandbox (bytes)
 MAX_REPLY = 32 * 1024 * 1024
 #: characters of the student's own text (an exception's message) a public test may show
@@ -135,40 +130,6 @@ def _plan() -> isolation.Plan:
     if _PLAN is None:
         _PLAN = isolation.plan()
     return _PLAN
-
-
-def wall_backstop(cpu_limit: float) -> float:
-    """Return the wall-clock limit behind a CPU-time limit: generous, so others' load never hits it."""
-    return WALL_FACTOR * cpu_limit + WALL_SLACK
-
-
-class Budget:
-    """A CPU-time limit on the whole sandbox, from now, with a wall-clock backstop."""
-
-    def __init__(self, box: Box, cpu_limit: float):
-        self.box, self.cpu_limit = box, float(cpu_limit)
-        self.cpu0 = box.cpu_seconds()
-        self.measured = time.monotonic()
-        self.wall_end = self.measured + wall_backstop(cpu_limit)
-        self.spent = 0.0
-
-    def exceeded(self, every: float = 0.0) -> str | None:
-        """``"cpu"`` or ``"wall"`` once a limit is hit, else None (measured by the runner itself).
-
-        The sandbox's CPU time is measured again only when ``every`` seconds of wall-clock time
-        have passed since the last measurement (0: always). A reply within ``every`` then costs
-        no measurement (a cgroup file read, or without a cgroup a walk of ``/proc``: 1-5 ms a
-        call on a busy machine, which made a test of many fast calls ten times slower); the CPU
-        time used since the last measurement, at most ``every`` seconds per process of the
-        sandbox, is counted at the next one, so a limit is found as late as it is while one
-        long call is polled (:data:`POLL_CGROUP`, :data:`POLL_PROC`).
-        """
-        now = time.monotonic()
-        if now - self.measured >= every:
-            self.spent, self.measured = self.box.cpu_seconds() - self.cpu0, now
-        if self.spent > self.cpu_limit:
-            return "cpu"
-        return "wall" if now >= self.wall_end else None
 
 
 class Sandbox:

@@ -31,9 +31,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from mslab.grading import isolation
-from mslab.grading.box import Box
+from mslab.grading.box import POLL_CGROUP, POLL_PROC, Box, Budget, wall_backstop
 from mslab.grading.intake import read_tree, read_zip
-from mslab.grading.remote import POLL_CGROUP, POLL_PROC, Budget, _exit_reason, _limits, _plan, wall_backstop
+from mslab.grading.remote import _exit_reason, _limits, _plan
 from mslab.grading.report import printable
 from mslab.grading.unzip import REFUSALS
 
