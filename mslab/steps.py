@@ -10,7 +10,6 @@ import numpy as np
 
 from mslab.checks import real
 
-
 #: most steps of one run: 2**53, beyond which ``n * dt`` no longer tells two steps apart in float64
 MAX_STEPS = float(2**53)
 
