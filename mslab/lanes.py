@@ -98,3 +98,13 @@ def register() -> None:
         if supported(values):
             return lambda values, stop: vector_lanes(values, stop)
         return lambda values, stop: scalar_lanes(values, stop)  # other arrays: the scalar loop
+
+
+def state_sums(terms: np.ndarray) -> np.ndarray:
+    """Return ``[np.sum(terms[s]) for s]``, bitwise: the sums of the ledger's energies of k states at once.
+
+    A sum over an axis of the whole array pairs the additions differently from a sum of one
+    state's terms, so each state keeps its own reduction (``np.add.reduce`` over its contiguous
+    terms, what ``np.sum`` calls, without its Python wrapper: about 1.5 us a state, not 7).
+    """
+    return np.array([np.add.reduce(row, axis=None) for row in terms], dtype=float)

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from mslab.effects.base import Effect
+from mslab.lanes import state_sums
 
 if TYPE_CHECKING:  # scipy.sparse is imported on first use: `import mslab` stays cheap
     from collections.abc import Iterable
@@ -176,6 +177,19 @@ class System:
         """``K = sum_i m_i |v_i|^2 / 2`` over free particles."""
         free = ~self.pinned
         return float(0.5 * np.sum(self.mass[free, None] * v[free] ** 2))
+
+    def kinetic_energies(self, vs: np.ndarray) -> np.ndarray:
+        """:meth:`kinetic_energy` of each state of ``vs`` (k, n, dim), bitwise (one numpy sum per state)."""
+        free = ~self.pinned
+        return 0.5 * state_sums(self.mass[free, None] * vs[:, free] ** 2)
+
+    def potential_energies(self, xs: np.ndarray) -> np.ndarray:
+        """:meth:`potential_energy` of each state of ``xs`` (k, n, dim), bitwise (effects' ``energies``)."""
+        total = np.zeros(len(xs))
+        for e in self.effects:
+            if e.conservative:
+                total = total + e.energies(xs)
+        return total
 
     def potential_energy(self, x: np.ndarray, compiled: bool = False) -> float:
         """Sum of the potential energies of the conservative effects.

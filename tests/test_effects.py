@@ -406,3 +406,30 @@ def test_extending_example(tmp_path, monkeypatch):
         registry._registry.pop("loads", None)
         registry._imported.discard("loads")
         sys.modules.pop("mslab.effects.loads", None)
+
+
+@pytest.mark.parametrize("cls", CLASSES, ids=[c.name for c in CLASSES])
+@pytest.mark.parametrize("dim", DIMS)
+def test_energies_of_many_states_are_each_states_energy_bitwise(cls, dim):
+    """``energies(xs)`` (the ledger's samples at once) equals ``energy(x)`` state by state, bit for bit."""
+    effect, x, _, _ = built_effect(cls, dim, 3)
+    xs = x[None] + np.random.default_rng(7).normal(scale=0.3, size=(5,) + x.shape)
+    got = effect.energies(xs)
+    assert got.shape == (5,)
+    assert got.tobytes() == np.array([effect.energy(s) for s in xs]).tobytes()
+
+
+def test_ledger_energies_of_a_big_cloth_bitwise():
+    """Thousands of terms per state (numpy's pairwise blocks): the sums state by state, not over an axis."""
+    scene = mslab.scenes.generators.cloth(30, 30, structural=100.0, shear=10.0, bend=1.0, gravity=9.81)
+    system = scene.system
+    rng = np.random.default_rng(0)
+    xs = scene.state0.x[None] + rng.normal(scale=0.01, size=(4,) + scene.state0.x.shape)
+    vs = rng.normal(size=xs.shape)
+    assert system.potential_energies(xs).tobytes() == np.array([system.potential_energy(x) for x in xs]).tobytes()
+    assert system.kinetic_energies(vs).tobytes() == np.array([system.kinetic_energy(v) for v in vs]).tobytes()
+    # the sum over an axis of the whole array is not the same sum (so the test above can fail)
+    springs = next(e for e in system.effects if isinstance(e, Springs))
+    d = xs[:, springs.i] - xs[:, springs.j]
+    terms = springs.stiffness * (np.sqrt(np.einsum("kij,kij->ki", d, d)) - springs.rest_length) ** 2
+    assert (0.5 * terms.sum(axis=1)).tobytes() != springs.energies(xs).tobytes()

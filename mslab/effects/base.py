@@ -218,6 +218,10 @@ class Effect:
         """Potential energy (0 unless conservative)."""
         return 0.0
 
+    def energies(self, xs: np.ndarray) -> np.ndarray:
+        """:meth:`energy` of each state of ``xs`` (k, n, dim), bitwise (default: one by one)."""
+        return np.array([self.energy(x) for x in xs], dtype=float)
+
     def compiled_energy(self, x: np.ndarray) -> float:
         """:meth:`energy` for the ledger check of a compiled run (default: the numpy code).
 

@@ -14,6 +14,7 @@ import numpy as np
 from mslab.effects.base import BuildContext, Builder, Effect
 from mslab.effects.registry import register
 from mslab.effects.schema import Key
+from mslab.lanes import state_sums
 
 if TYPE_CHECKING:
     import numpy.typing as npt
@@ -88,6 +89,10 @@ class Gravity(Effect):
     def energy(self, x: np.ndarray) -> float:
         """Return the potential energy ``-sum_i m_i g . x_i``."""
         return float(-np.sum(self._f * x))
+
+    def energies(self, xs: np.ndarray) -> np.ndarray:
+        """:meth:`energy` of each state of ``xs`` (k, n, dim), bitwise (one numpy sum per state)."""
+        return -state_sums(self._f * xs)
 
     def jacobians(self, x: np.ndarray, v: np.ndarray) -> tuple[sp.spmatrix | None, sp.spmatrix | None]:
         """Return ``(None, None)``: a constant force has zero Jacobians."""

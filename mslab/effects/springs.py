@@ -23,6 +23,7 @@ from mslab.effects.spring_kernels import (
     spring_kernel,
 )
 from mslab.effects.spring_table import SPRING_KINDS, SpringTable
+from mslab.lanes import state_sums
 
 if TYPE_CHECKING:  # scipy.sparse is imported on first use: `import mslab` stays cheap
     from collections.abc import Callable
@@ -170,6 +171,16 @@ class Springs(Effect):
         """Return the elastic energy ``sum_q k (l - L)^2 / 2``."""
         _, length, _ = self._geometry(x)
         return float(0.5 * np.sum(self.stiffness * (length - self.rest_length) ** 2))
+
+    def energies(self, xs: np.ndarray) -> np.ndarray:
+        """:meth:`energy` of each state of ``xs`` (k, n, dim), bitwise: the terms of all states at once.
+
+        The same elementwise operations as :meth:`energy`, then one numpy sum per state
+        (:func:`mslab.lanes.state_sums`).
+        """
+        d = xs[:, self.i] - xs[:, self.j]
+        terms = self.stiffness * (np.sqrt(np.einsum("kij,kij->ki", d, d)) - self.rest_length) ** 2
+        return 0.5 * state_sums(terms)
 
     def compiled_energy(self, x: np.ndarray) -> float:
         """:meth:`energy` through :func:`spring_energy_kernel` (compiled; round-off apart the same)."""
