@@ -434,3 +434,16 @@ def test_ledger_energies_of_a_big_cloth_bitwise():
     d = xs[:, springs.i] - xs[:, springs.j]
     terms = springs.stiffness * (np.sqrt(np.einsum("kij,kij->ki", d, d)) - springs.rest_length) ** 2
     assert (0.5 * terms.sum(axis=1)).tobytes() != springs.energies(xs).tobytes()
+
+
+@pytest.mark.parametrize("base", [Springs, Gravity], ids=["springs", "gravity"])
+def test_a_subclass_with_its_own_energy_keeps_it_in_the_ledger(base):
+    """A subclass that redefines ``energy`` (a careless extension) is not given the base class's batch."""
+    cls = type("Doubled", (base,), {"energy": lambda self, x: 2.0 * base.energy(self, x)})
+    effect, x, _, _ = built_effect(base, 2, 4)
+    twin = object.__new__(cls)
+    twin.__dict__.update(effect.__dict__)
+    xs = x[None] + np.random.default_rng(2).normal(scale=0.1, size=(3,) + x.shape)
+    assert twin.energies(xs).tolist() == [2.0 * effect.energy(s) for s in xs]
+    assert effect.energies(xs).tolist() == [effect.energy(s) for s in xs]
+    assert twin.compiled_energy(x) == 2.0 * effect.energy(x)  # the compiled ledger check's energy too
