@@ -56,8 +56,8 @@ def _newton(system: System, u0: np.ndarray, residual: Callable, solve: Callable,
                       f"(residual tolerance {tol:.2e}); try a smaller dt")
 
 
-def _linear_solve(S: sp.spmatrix, residual: np.ndarray) -> tuple[np.ndarray, float]:
-    """Solve ``(I - S) du = -residual`` (S sparse); also return ``max_i sum_j |S_ij|``."""
+def _linear_solve(S: sp.spmatrix | np.ndarray, residual: np.ndarray) -> tuple[np.ndarray, float]:
+    """Solve ``(I - S) du = -residual`` (S sparse or dense); also return ``max_i sum_j |S_ij|``."""
     if residual.size <= factor.DENSE_MAX:
         S = S if isinstance(S, np.ndarray) else S.toarray()
         row_sum = float(np.abs(S).sum(axis=1).max()) if S.size else 0.0
