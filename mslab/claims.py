@@ -30,7 +30,8 @@ from dataclasses import dataclass
 from numbers import Integral, Real
 
 __all__ = ["ClaimError", "claim", "MAGNITUDES", "FRACTIONS", "share_range", "VERDICTS", "NO_CLAIM_REASONS",
-           "Number", "numbers_in", "normalise", "Printed", "parse_printed", "fits"]
+           "Number", "numbers_in", "normalise", "Printed", "parse_printed", "fits", "UNITS", "unit_at",
+           "comparable", "in_base"]
 
 
 class ClaimError(AssertionError):
@@ -77,7 +78,7 @@ def claim(statement: str, holds: bool, *, id: str | None = None, **numbers: obje
 #: (lo, hi) (both ends included). Ratios read either way ("halves": 0.5 or 2). Actions on an
 #: input ("halving h", "doubling n") are no magnitude words.
 MAGNITUDES: dict[str, tuple[tuple[float, float], ...]] = {
-    r"a few": ((2.0, 5.0),),
+    r"a few|few-percent": ((2.0, 5.0),),
     r"several": ((3.0, 9.0),),
     r"dozens?|tens": ((10.0, 99.0),),
     r"hundreds": ((100.0, 999.0),),
@@ -237,21 +238,88 @@ def numbers_in(text: str) -> list[Number]:
     return found
 
 
+#: Units a number can carry, by dimension and factor to the dimension's base; a count noun
+#: ("6 steps") is a unit of its own. A sentence's number with a unit is compared only with
+#: printed values of the same dimension (when its claims print any), converted.
+UNITS: dict[str, tuple[str, float]] = {
+    "s": ("s", 1.0), "ms": ("s", 1e-3), "µs": ("s", 1e-6), "us": ("s", 1e-6), "min": ("s", 60.0),
+    "m": ("m", 1.0), "cm": ("m", 1e-2), "mm": ("m", 1e-3), "µm": ("m", 1e-6), "km": ("m", 1e3),
+    "J": ("J", 1.0), "N": ("N", 1.0), "N/m": ("N/m", 1.0), "kg": ("kg", 1.0), "kg/s": ("kg/s", 1.0),
+    "rad/s": ("rad/s", 1.0), "Hz": ("Hz", 1.0), "%": ("%", 1.0),
+    "step": ("steps", 1.0), "steps": ("steps", 1.0), "iteration": ("iterations", 1.0),
+    "iterations": ("iterations", 1.0), "evaluation": ("evaluations", 1.0),
+    "evaluations": ("evaluations", 1.0), "times": ("times", 1.0),
+}
+_NOUNS = ("steps", "iterations", "evaluations", "times")
+# a count noun may follow one word ("4.7 Newton iterations", "3201 force evaluations")
+_PHYSICAL = "|".join(sorted((re.escape(u) for u, (d, _) in UNITS.items() if d not in _NOUNS),
+                           key=len, reverse=True))
+_COUNTS = "|".join(u for u, (d, _) in UNITS.items() if d in _NOUNS)
+_FUNCTION_WORD = r"(?!(?:in|of|the|per|more|fewer|than|and|or|to|at|on|for|by|with|a|an)\s)"
+_UNIT = re.compile(rf"\s*(?:({_PHYSICAL})|(?:{_FUNCTION_WORD}[A-Za-z]+\s+)?({_COUNTS}))(?![\w/])")
+#: what joins the numbers of one printed list that share the unit after the last: "20, 10, 5 ms"
+_LIST_JOIN = re.compile(r"[\s,]*(?:\.\.\.?|…|and|to)?[\s,]*")
+
+
+def unit_at(text: str, pos: int) -> str | None:
+    """Return the dimension of the unit written right after offset ``pos`` of ``text`` (None: no unit)."""
+    m = _UNIT.match(text, pos)
+    return UNITS[m.group(1) or m.group(2)][0] if m else None
+
+
+def _scale(text: str, pos: int) -> float:
+    m = _UNIT.match(text, pos)
+    return UNITS[m.group(1) or m.group(2)][1] if m else 1.0
+
+
+def in_base(number: Number, text: str, unit_pos: int) -> Number:
+    """Return ``number`` in the base unit of the unit written at ``unit_pos`` of ``text``."""
+    scale = _scale(text, unit_pos)
+    return Number(number.value * scale, number.half_ulp * scale, number.start, number.end, number.text)
+
+
 @dataclass(frozen=True)
 class Printed:
     """One stored ``claim holds`` line: its id, statement and printed values.
 
-    ``shares`` are the values that read as a share of a whole: a value in 0-1, or a percent
-    (printed with ``%``) divided by 100.
+    ``shares`` are the values that read as a share of a whole: a value in 0-1 without a
+    physical unit, or a percent (printed with ``%``) divided by 100. ``measured`` are the
+    values that carry a unit (written after them, shared along a list "20, 10, 5 ms", or the
+    value's name when that is a count noun: ``steps = 6, 6``, or a ratio: ``ratios = 5.4``,
+    ``a_over_b = 63``, read as "times"): (dimension, value, half a unit of its last digit),
+    both in the dimension's base unit.
     """
 
     id: str
     statement: str
     values: tuple[tuple[float, float], ...]      # (value, half a unit of its last digit)
     shares: tuple[tuple[float, float], ...] = ()
+    measured: tuple[tuple[str, float, float], ...] = ()
 
 
 _HOLDS = re.compile(r"^claim holds: \[([\w.\-]+)\] (.*)$", re.MULTILINE)
+_NAME = re.compile(r"(?:^|,\s*)([A-Za-z_]\w*) = ")
+
+
+def _measured(values: str) -> list[tuple[str | None, float, float]]:
+    """(dimension or None, value, half ulp) of every number of a claim's printed values, in base units."""
+    out = []
+    names = list(_NAME.finditer(values))
+    for k, name in enumerate(names):
+        chunk = values[name.end():names[k + 1].start() if k + 1 < len(names) else len(values)]
+        numbers = numbers_in(chunk)
+        noun = name.group(1).lower().rpartition("_")[2]
+        by_name = UNITS[noun][0] if noun in UNITS and noun.endswith("s") and noun != "times" else None
+        if re.search(r"ratio|_over_|factor", name.group(1)):   # ratios = 5.4; rk4_over_heun = 63: "N times"
+            by_name = "times"
+        units: list[tuple[str | None, float]] = [(unit_at(chunk, n.end), _scale(chunk, n.end))
+                                                 for n in numbers]
+        for i in range(len(numbers) - 2, -1, -1):  # a list shares the unit written after its last number
+            if units[i][0] is None and _LIST_JOIN.fullmatch(chunk[numbers[i].end:numbers[i + 1].start]):
+                units[i] = units[i + 1]
+        for n, (dim, scale) in zip(numbers, units, strict=True):
+            out.append((dim or by_name, n.value * scale, n.half_ulp * scale))
+    return out
 
 
 def parse_printed(output: str) -> list[Printed]:
@@ -262,13 +330,27 @@ def parse_printed(output: str) -> list[Printed]:
         head, sep, tail = statement.rpartition("  (")
         if sep and tail.endswith(")") and re.match(r"[A-Za-z_]\w* = ", tail):
             statement, values = head, tail[:-1]
-        values = re.sub(r"\b[A-Za-z_]\w* = ", " ", values)
-        numbers = numbers_in(values)
-        scaled = [(n.value / 100, n.half_ulp / 100) if re.match(r"\s*(?:%|\\%)", values[n.end:])
+        measured = _measured(values)
+        plain = re.sub(r"\b[A-Za-z_]\w* = ", " ", values)
+        numbers = numbers_in(plain)
+        dims = [d for d, _, _ in measured] if len(measured) == len(numbers) else [None] * len(numbers)
+        scaled = [(n.value / 100, n.half_ulp / 100) if re.match(r"\s*(?:%|\\%)", plain[n.end:])
                   else (n.value, n.half_ulp) for n in numbers]
-        claims.append(Printed(m.group(1), statement, tuple((n.value, n.half_ulp) for n in numbers),
-                              tuple((v, h) for v, h in scaled if v - h <= 1.0)))
+        shares = tuple((v, h) for (v, h), d in zip(scaled, dims, strict=True)
+                       if v - h <= 1.0 and d in (None, "%", "times"))
+        claims.append(Printed(m.group(1), statement, tuple((n.value, n.half_ulp) for n in numbers), shares,
+                              tuple((d, v, h) for d, v, h in measured if d is not None)))
     return claims
+
+
+def comparable(text: str, unit_pos: int, claims: list[Printed], values: tuple) -> tuple:
+    """Return the values a number of ``text`` with its unit at ``unit_pos`` is compared with.
+
+    Those of the unit's dimension (in base units) when the claims print any, else ``values``.
+    """
+    dim = unit_at(text, unit_pos)
+    same = tuple((v, h) for p in claims for d, v, h in p.measured if d == dim) if dim else ()
+    return same or values
 
 
 def fits(kind: str, number: Number | None, lo_hi: tuple[float, float] | None,

@@ -270,7 +270,49 @@ MUTATIONS = [   # (lesson, text of a backed sentence, the same text made wrong, 
      "'a third' (a share in 0.303-0.37"),
     ("03_verlet_leapfrog.ipynb", "make up more than half of the net loss",                # a bound on a share
      "make up less than half of the net loss", "'half' (a share below 0.5"),
+    # an outside reviewer's edits (2026-11-29) that any printed value used to let through: a bound with a
+    # unit is held to the printed values of that unit (5 s, not the 1 cm threshold), a count noun to the
+    # values of that name (steps = 6, 6), a factor to the printed ratios (5.4, 21.4, not a median of 0.56)
+    ("03_verlet_leapfrog.ipynb", "apart within 10 s", "apart within 2 s", "below 2: no printed value fits"),
+    ("04_implicit_euler.ipynb", "blow up within 6 steps", "blow up within 3 steps",
+     "below 3: no printed value fits"),
+    ("06_energy_drift.ipynb", "more than three times the 30 s value", "less than three times the 30 s value",
+     "below 3: no printed value fits"),
 ]
+
+
+UNITS = ("claim holds: [v] it drifts apart, blows up and grows  (moved = 1e-09 m, apart_by = 1 cm, "
+         "first_time = 5 s, steps = 6, 6, ratios = 5.4, 21.4, median = 0.56, "
+         "newton = 4.7 Newton iterations per frame)\n")
+LISTS = "claim holds: [v] it drifts apart  (lost = 20, 10, 5 ms, dt = 0.1 ms, ratio = 0.087)\n"
+
+
+@pytest.mark.parametrize("sentence", [
+    "They are apart within 10 s.",              # 5 s
+    "They are apart within 6000 ms.",           # converted: 5 s
+    "It blows up within 6 steps.",              # steps = 6, 6
+    "The losses are 5-20 ms.",                  # a list shares the unit after its last number
+    "It grows more than three times.",          # ratios = 5.4, 21.4
+    "It takes 4.7 Newton iterations.",          # a word between a number and its count noun
+    "The positions moved 1e-9 m.",
+])
+def test_numbers_with_a_unit_that_the_values_of_that_unit_carry(tmp_path, sentence):
+    output = LISTS if "losses" in sentence else UNITS
+    assert findings(tmp_path, [f"{sentence} <!-- claim: v -->"], output=output) == []
+
+
+@pytest.mark.parametrize("sentence, problem", [
+    ("They are apart within 2 s.", "below 2: no printed value fits"),          # 1 cm and 1e-9 m are no time
+    ("They are apart within 2000 ms.", "below 2000: no printed value fits"),
+    ("It blows up within 3 steps.", "below 3: no printed value fits"),
+    ("It grows less than three times.", "below 3: no printed value fits"),     # not the median's 0.56
+    ("It took 2 Newton iterations.", "2: no printed value fits"),
+    ("The step is about a tenth of the limit.", "'a tenth' (a share in"),    # 0.1 ms is no share
+])
+def test_numbers_with_a_unit_that_only_other_values_would_carry(tmp_path, sentence, problem):
+    output = LISTS if "tenth" in sentence else UNITS
+    found = findings(tmp_path, [f"{sentence} <!-- claim: v -->"], output=output)
+    assert len(found) == 1 and problem in found[0], found
 
 
 @pytest.mark.parametrize("lesson, right, wrong, problem", MUTATIONS)

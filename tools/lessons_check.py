@@ -1,12 +1,9 @@
 """Check the lessons' markdown sentences against the claims that back them.
 
-Usage (from the repository root)::
+Usage: ``python tools/lessons_check.py [lessons/NN_x.ipynb ...]`` (default: every lesson).
 
-    python tools/lessons_check.py                       # every lessons/NN_*.ipynb
-    python tools/lessons_check.py lessons/03_verlet_leapfrog.ipynb
-
-Exit 0 when every sentence is backed and agrees with its claims, 1 with a list
-(``FILE:cell N: sentence [problem]``) otherwise, 2 on a file that cannot be read.
+Exit 0 when every sentence is backed and agrees with its claims, 1 with a list otherwise, 2 on a
+file that cannot be read.
 
 A sentence *needs backing* when, outside code, links' targets, headings and citations ("eq. 3",
 "lesson 04", "§2.3", names such as ``rk4`` or "2D", list markers "1."), it contains a number
@@ -22,29 +19,26 @@ very start of a paragraph, block quote or list item covers that whole block:
   (``mslab.claims.claim``). Then the sentence must agree with the printed values:
 
   - every number equals a printed value to the digits the sentence gives ("14.5" against
-    "14.53"; the two roundings overlap), or is bounded by one: "more than / over / above /
-    at least 70" needs a printed value above 70, "below / under / less than / within / up to
-    1e-6" one below, "about / roughly / nearly / ~ 30" one within 10 %, "30-50", "3 to 5",
-    "between 3 and 5" one inside, "10 or more" one at least 10 (relations inside ``$...$``
-    likewise: ``<``, ``\\le``, ``\\approx``); a number word counts where it is a factor
-    ("seven times", "tenfold", "a factor of three"), other number words are not compared;
+    "14.53"), or is bounded by one: "more than / at least 70" needs a printed value above 70,
+    "below / within / up to 1e-6" one below, "about / ~ 30" one within 10 %, "30-50", "3 to 5",
+    "between 3 and 5" one inside, "10 or more" one at least 10 (inside ``$...$``: ``<``,
+    ``\\le``, ``\\approx``); a number word counts where it is a factor ("seven times", "tenfold");
+  - a number with a unit ("within 10 s", "6 steps", "three times") is held to the printed values
+    of that unit (``mslab.claims.UNITS``), when there are any. Not checked: which side of a
+    comparison each subject is on (the claim's statement carries it);
   - every magnitude word ("several", "tens", "twice", "halves", ...) has a printed value in
     its range, written once in ``mslab.claims.MAGNITUDES``;
   - every share word ("a fifth", "two thirds", "one in four", "nine in ten", "most of", "the
     majority", ...) has a printed share (a value in 0-1, or a percent printed with ``%``) in its
-    range, written once in ``mslab.claims.FRACTIONS``; a bound in front bounds the share by its
-    nominal value: "more than half" needs a share above 0.5, "over a third" one above 1/3, "less
-    than half the limit" one below 0.5, "half of it or more" one of at least 0.5;
+    range, written once in ``mslab.claims.FRACTIONS``; a bound ("more than half", "over a
+    third", "half of it or more") bounds the share by its nominal value;
   - every verdict word ("faster", "only", "never", "same", "bounded", ...) appears in the
     statement of one of its claims.
 
 * ``<!-- no-claim: REASON -->`` (or ``REASON: a few words``) marks a sentence that is not a
-  measurement; REASON is one of ``mslab.claims.NO_CLAIM_REASONS`` (definition, parameter,
-  pointer, derivation-above, convention, outline, question, theorem) and the words never name
-  a claim.
+  measurement; REASON is one of ``mslab.claims.NO_CLAIM_REASONS`` and the words never name a claim.
 
-A folded solution (``<details>...</details>``, the worked answer of a pen-and-paper task) is
-not checked. A claim ID that no cell defines, or whose stored output does not show it holding, is listed.
+Folded solutions (``<details>``) are not checked; a claim ID not defined or not holding is listed.
 """
 
 from __future__ import annotations
@@ -66,7 +60,9 @@ from mslab.claims import (  # noqa: E402
     VERDICTS,
     Number,
     Printed,
+    comparable,
     fits,
+    in_base,
     normalise,
     numbers_in,
     parse_printed,
@@ -287,14 +283,17 @@ def disagreements(numeric: str, claims: list[Printed]) -> list[str]:
         between = re.search(r"between\s*$", before, re.I) and gap.strip() == "and"
         if nxt and (RANGE_JOIN.fullmatch(gap) or between):
             used.add(i + 1)
-            ok = fits("range", None, (n.value - n.half_ulp, nxt.value + nxt.half_ulp), values)
+            lo, hi = in_base(n, numeric, nxt.end), in_base(nxt, numeric, nxt.end)
+            ok = fits("range", None, (lo.value - lo.half_ulp, hi.value + hi.half_ulp),
+                      comparable(numeric, nxt.end, claims, values))
             label = f"{n.text}-{nxt.text}"
         else:
             after = numeric[n.end:n.end + 20]
             kind = ("above" if ABOVE.search(before) or OR_MORE.match(after) else
                     "below" if BELOW.search(before) or OR_LESS.match(after) else
                     "about" if ABOUT.search(before) else "equal")
-            ok, label = fits(kind, n, None, values), (n.text if kind == "equal" else f"{kind} {n.text}")
+            ok = fits(kind, in_base(n, numeric, n.end), None, comparable(numeric, n.end, claims, values))
+            label = n.text if kind == "equal" else f"{kind} {n.text}"
         if not ok:
             problems.append(f"{label.strip()}: no printed value fits")
     shares = share_words(numeric)
