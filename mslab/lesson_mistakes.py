@@ -51,11 +51,12 @@ def dt_limit(limit: Callable) -> dict[str, Callable]:
     return {
         "the factor 2 is missing: solve |2 - dt^2 w^2| < 2 for dt":
             lambda mass, stiffness: 0.5 * limit(mass, stiffness),
-        "mass and stiffness are swapped: w = sqrt(k/m), the limit is proportional to 1/w":
+        "mass and stiffness are swapped: a stiffer collider (a larger w = sqrt(k/m)) needs a smaller step":
             lambda mass, stiffness: limit(stiffness, mass),
         "that is how long a contact lasts (half a period), not the step limit":
             lambda mass, stiffness: 0.5 * np.pi * limit(mass, stiffness),
-        "the square root is missing: the limit is 2/w with w = sqrt(k/m)":
+        "the square root is missing: like the oscillator of lessons 03 and 05, the step is limited through "
+        "the product dt w, and w = sqrt(k/m)":
             lambda mass, stiffness: 0.5 * limit(mass, stiffness) ** 2,
     }
 
