@@ -154,6 +154,10 @@ def run(args: argparse.Namespace) -> int:
                 raise CommandError(str(err), where=os.fspath(args.csv)) from None
         if book is not None:
             book.close(finished=True)  # the class is graded: nothing to resume
+    except CommandError:
+        if book is not None and not args.resume and not book.added:
+            book.close(finished=True)  # refused before anything was graded: nothing to resume
+        raise
     finally:
         if book is not None:
             book.close(finished=False)
