@@ -77,3 +77,15 @@ def test_a_one_submission_format_on_a_class_is_refused_before_grading(two, tmp_p
     _refused(capsys, ["grade", str(two), "--source", str(SOURCE), "--exercise", TARGET, "--format", fmt,
                       "--output", str(out)], "--format", "2 submissions")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["class"]  # no results.json, no journal
+
+
+def test_a_grading_the_grader_itself_failed_is_no_class_of_zeros(two, tmp_path, capsys, monkeypatch):
+    """The runner's old fixed 4096 MB again: no sandbox can start, and that is said, not graded 0."""
+    from mslab.grading import dispatch
+
+    monkeypatch.setattr(dispatch, "runner_memory_mb", lambda sandbox_mb: 4096, raising=False)
+    book = tmp_path / "book.csv"
+    line = _refused(capsys, ["grade", str(two), "--source", str(SOURCE), "--exercise", TARGET,
+                             "--memory", "8192", "--csv", str(book), "--jobs", "1"], "grader's own")
+    assert "could not start the sandbox" in line or "hidden test: the grader failed" in line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["class"]  # no gradebook, no journal to resume

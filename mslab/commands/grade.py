@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from mslab.commands.common import CommandError, add_common_options, count, emit_json, number, say
-from mslab.grading.autograde import SubmissionResult, grade
+from mslab.grading.autograde import SubmissionResult, grade, grader_faults
 from mslab.grading.isolation import DESCRIPTION
 from mslab.grading.layout import default_source, expand_submissions, find_exercises
 from mslab.grading.platforms import FORMATS, SINGLE, check_format, write_grades
@@ -204,6 +204,7 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(str(err)) from None
     try:
         results = _grade(args, source, book)
+        _refuse_grader_faults(results, book)
         if args.csv:
             try:
                 write_grades(args.csv, args.format, results, assignment=args.assignment)
@@ -222,6 +223,17 @@ def run(args: argparse.Namespace) -> int:
         _warn_isolation(results[0])
     _show(args, results)
     return 0
+
+
+def _refuse_grader_faults(results: list, book: Journal | None) -> None:
+    """Stop (no gradebook, no journal to resume) if a test failed for a reason of the grader's own."""
+    faults = grader_faults(results)
+    if not faults:
+        return
+    if book is not None:
+        book.close(finished=True)  # its outcomes are the grader's failures: never to be resumed
+    raise CommandError(f"{len(faults)} test(s) failed for a reason of the grader's own, not the students' "
+                       f"(first: {printable(faults[0], 300)}); no gradebook written: fix it and grade again")
 
 
 def _grade(args: argparse.Namespace, source: str | Path, book: Journal | None) -> list:

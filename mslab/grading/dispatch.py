@@ -37,6 +37,8 @@ MAX_RUNNER_OUTPUT = 16 * 1024 * 1024
 #: address-space limit of a test runner (MB): it decodes what the sandbox answers; at least the
 #: sandbox's own limit, which the runner's children cannot raise above it (:func:`runner_memory_mb`)
 RUNNER_MEMORY_MB = 4096
+#: why every item of a runner that never said ``ready`` failed: the grader's fault, not a student's
+NOT_STARTED = "the test runner did not start"
 #: set when grading is interrupted: every runner is stopped and its folder removed
 STOP = threading.Event()
 
@@ -110,7 +112,7 @@ def run_runner(job: dict, walls: list[float], on_item: Callable[[str, dict], Non
                     why = (f"timed out (wall-clock limit of {walls[len(done)]:.0f} s for one exercise "
                            "of one submission)")
                 else:
-                    why = "the test runner did not start"
+                    why = NOT_STARTED
                 break
             if not sel.select(timeout=min(left, 0.5)):
                 continue
@@ -126,7 +128,7 @@ def run_runner(job: dict, walls: list[float], on_item: Callable[[str, dict], Non
                 line, buf = buf.split(b"\n", 1)
                 if not ready:
                     if line != b"ready":
-                        return done, "the test runner did not start", ""
+                        return done, NOT_STARTED, ""
                     ready = True  # non-dumpable now: the nonce may go out
                     deadline = time.monotonic() + walls[0]
                     proc.stdin.write(json.dumps(job).encode())
