@@ -89,3 +89,19 @@ def test_a_grading_the_grader_itself_failed_is_no_class_of_zeros(two, tmp_path, 
                              "--memory", "8192", "--csv", str(book), "--jobs", "1"], "grader's own")
     assert "could not start the sandbox" in line or "hidden test: the grader failed" in line
     assert sorted(p.name for p in tmp_path.iterdir()) == ["class"]  # no gradebook, no journal to resume
+
+
+def test_a_platform_upload_with_other_files_is_still_one_submission(tmp_path):
+    """Gradescope's upload folder is one submission: a scratch file beside the answer is not a classmate."""
+    from mslab.commands.platform_entry import entry
+
+    source = tmp_path / "source"
+    shutil.copytree(SOURCE / TARGET, source / TARGET)
+    upload = tmp_path / "submission"
+    upload.mkdir()
+    shutil.copyfile(SOURCE / TARGET / MODULE, upload / MODULE)
+    (upload / "scratch.py").write_text("print('trying things')\n")
+    out = tmp_path / "results" / "results.json"
+    assert entry(["gradescope", str(upload), str(source), str(out), "--isolation", "auto", TARGET]) == 0
+    doc = json.loads(out.read_text())
+    assert doc["score"] == sum(t["max_score"] for t in doc["tests"]) > 0, doc

@@ -70,7 +70,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--layout", default="auto", choices=["auto", "class", "submission"],
                    help="class: every entry of SUBMISSION is a student's (folder, .zip, .py, .ipynb); "
                         "submission: SUBMISSION is one student's work; auto (default): one submission "
-                        "if it holds an exercise's file (NN_topic/FILE or FILE itself), else a class")
+                        "if it holds an exercise's file (NN_topic/FILE or FILE itself), else a class; "
+                        "refused if it also holds entries that look like other students'")
     p.add_argument("--isolation", default="auto", choices=["auto", "bwrap", "namespaces", "rlimits"],
                    help="how student code is isolated (default: the strongest available)")
     p.add_argument("--require-isolation", action="store_true",
