@@ -114,26 +114,33 @@ def method_help(what: str = "integrator") -> str:
     return f"{what}: {', '.join(methods())} (details: `mslab methods`)"
 
 
-def number(**limits: Any) -> Callable[[str], float]:
+def number(maximum: float | None = None, **limits: Any) -> Callable[[str], float]:
     """Return an argparse ``type=`` reading a real number through :func:`mslab.checks.real`.
 
     ``limits``: ``positive``, ``minimum``, ``allow_inf`` as there; NaN, an infinity and a word
-    that is no number are refused. Command-line numbers pass the same checks as the API's
-    arguments, and a refusal is argparse's one line ``mslab: error: --OPTION: reason``.
+    that is no number are refused, and so is a number above ``maximum``. Command-line numbers
+    pass the same checks as the API's arguments, and a refusal is argparse's one line
+    ``mslab: error: --OPTION: reason``.
     """
     from mslab.checks import real
 
-    return _option(float, lambda value: real("", value, **limits), "number")
+    return _option(float, lambda value: _at_most(real("", value, **limits), maximum), "number")
 
 
-def count(minimum: int = 1) -> Callable[[str], int]:
-    """Return an argparse ``type=`` reading a whole number ``>= minimum`` through :func:`mslab.checks.whole`.
+def count(minimum: int = 1, maximum: int | None = None) -> Callable[[str], int]:
+    """Return an argparse ``type=`` reading a whole number ``>= minimum`` (and ``<= maximum``).
 
-    ``1.5`` or ``1e3`` is refused, not rounded.
+    Read through :func:`mslab.checks.whole`: ``1.5`` or ``1e3`` is refused, not rounded.
     """
     from mslab.checks import whole
 
-    return _option(int, lambda value: whole("", value, minimum), "whole number")
+    return _option(int, lambda value: _at_most(whole("", value, minimum), maximum), "whole number")
+
+
+def _at_most(value: Any, maximum: float | None) -> Any:
+    if maximum is not None and value > maximum:
+        raise ValueError(f"must be <= {maximum:g}, got {value:g}")
+    return value
 
 
 def _option(parse: Callable[[str], Any], check: Callable[[Any], Any], what: str) -> Callable[[str], Any]:

@@ -3,16 +3,17 @@
 from __future__ import annotations
 
 import os
+import resource
 import sys
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from mslab.commands.common import CommandError, add_common_options, count, emit_json, number, say
-from mslab.grading.autograde import SubmissionResult, grade
+from mslab.grading.autograde import SubmissionResult, grade, grader_faults
 from mslab.grading.isolation import DESCRIPTION
-from mslab.grading.layout import default_source
-from mslab.grading.platforms import FORMATS, check_format, write_grades
+from mslab.grading.layout import default_source, expand_submissions, find_exercises
+from mslab.grading.platforms import FORMATS, SINGLE, check_format, write_grades
 from mslab.grading.report import Journal, format_report, printable
 
 if TYPE_CHECKING:
@@ -20,8 +21,14 @@ if TYPE_CHECKING:
 
 #: smallest --timeout (CPU seconds; the runner measures CPU time every 0.05-0.2 s)
 MIN_TIMEOUT = 0.1
+#: largest --timeout (CPU seconds per test: a day; beyond, the limits' clocks overflow)
+MAX_TIMEOUT = 86400.0
 #: smallest --memory (MB)
 MIN_MEMORY = 64
+#: largest --memory (MB): 1 TiB (the grader's own hard address-space limit may lower it)
+MAX_MEMORY = 1 << 20
+#: largest --jobs (parallel runners, each a process and a cgroup)
+MAX_JOBS = 256
 #: seconds of grading before a progress line appears (on a terminal only)
 PROGRESS_AFTER = 2.0
 
@@ -50,19 +57,21 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="record each result as it arrives (default with --csv: FILE.journal)")
     p.add_argument("--resume", action="store_true",
                    help="continue an interrupted grading from its journal")
-    p.add_argument("--timeout", type=number(minimum=MIN_TIMEOUT), default=10.0, metavar="S",
+    p.add_argument("--timeout", type=number(minimum=MIN_TIMEOUT, maximum=MAX_TIMEOUT), default=10.0,
+                   metavar="S",
                    help="CPU seconds per test, all the sandbox's processes together (default 10; "
                         "a wall-clock backstop of 5x+10 s)")
-    p.add_argument("--memory", type=count(MIN_MEMORY), default=1024, metavar="MB",
+    p.add_argument("--memory", type=count(MIN_MEMORY, MAX_MEMORY), default=1024, metavar="MB",
                    help="memory limit of student code")
-    p.add_argument("--jobs", type=count(1), default=None, metavar="N",
+    p.add_argument("--jobs", type=count(1, MAX_JOBS), default=None, metavar="N",
                    help="parallel runners (default: cores)")
     p.add_argument("--exercise", action="append", default=None, metavar="NAME",
                    help="grade only this exercise (repeatable)")
     p.add_argument("--layout", default="auto", choices=["auto", "class", "submission"],
                    help="class: every entry of SUBMISSION is a student's (folder, .zip, .py, .ipynb); "
                         "submission: SUBMISSION is one student's work; auto (default): one submission "
-                        "if it holds an exercise's file (NN_topic/FILE or FILE itself), else a class")
+                        "if it holds an exercise's file (NN_topic/FILE or FILE itself), else a class; "
+                        "refused if it also holds entries that look like other students'")
     p.add_argument("--isolation", default="auto", choices=["auto", "bwrap", "namespaces", "rlimits"],
                    help="how student code is isolated (default: the strongest available)")
     p.add_argument("--require-isolation", action="store_true",
@@ -101,7 +110,18 @@ def _check_options(args: argparse.Namespace) -> None:
         check_format(args.format, args.csv, len(args.submissions), args.assignment)
     except ValueError as err:
         raise CommandError(str(err)) from None
-    for key, path in (("--csv", args.csv), ("--journal", args.journal)):
+    hard = resource.getrlimit(resource.RLIMIT_AS)[1]
+    if hard != resource.RLIM_INFINITY and args.memory * 1024 * 1024 > hard:
+        raise CommandError(f"this process's own address-space limit is {hard // (1024 * 1024)} MB "
+                           "(ulimit -v): no sandbox can be given more", key="--memory")
+    _check_outputs(args)
+
+
+def _check_outputs(args: argparse.Namespace) -> None:
+    """Refuse an output that is no regular file, or the same file as another output or a submission."""
+    journal = args.journal or (f"{args.csv}.journal" if args.csv else None)
+    outputs = [("--csv", args.csv), ("--journal", journal)]
+    for key, path in outputs:
         if path is None:
             continue
         target = Path(path)
@@ -110,6 +130,43 @@ def _check_options(args: argparse.Namespace) -> None:
         folder = target.parent if str(target.parent) else Path(".")
         if not folder.is_dir() or not os.access(folder, os.W_OK | os.X_OK):
             raise CommandError("its folder is missing or not writable", where=str(path), key=key)
+    taken = [("a SUBMISSION", path) for path in args.submissions]
+    for key, path in outputs:
+        if path is None:
+            continue
+        for other, seen in taken:
+            if _same_file(path, seen):
+                raise CommandError(f"is the same file as {other} ({seen}): one would destroy the other",
+                                   where=str(path), key=key)
+        taken.append((key, path))
+        inside = any(Path(path).resolve().parent == Path(sub).resolve() for sub in args.submissions)
+        if inside and os.path.lexists(path) and str(path).endswith((".py", ".ipynb", ".zip")):
+            raise CommandError("is a student's entry of the class folder", where=str(path), key=key)
+
+
+def _same_file(a: str | Path, b: str | Path) -> bool:
+    if os.path.realpath(a) == os.path.realpath(b):
+        return True
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def _check_single(args: argparse.Namespace, source: str | Path) -> None:
+    """Refuse a one-submission format (Gradescope, PrairieLearn) for a class, before grading anything."""
+    if args.format not in SINGLE:
+        return
+    try:
+        exercises = find_exercises(source)
+        exercises = [e for e in exercises if not args.exercise or e.name in args.exercise] or exercises
+        found = expand_submissions(args.submissions, exercises, args.layout, ignore=[args.csv])
+    except ValueError as err:
+        raise CommandError(str(err)) from None
+    if len(found) != 1:
+        raise CommandError(f"{args.format} writes the results.json of one submission; "
+                           f"{len(found)} submissions were found (a class: grade it with --format csv "
+                           "or canvas)", key="--format")
 
 
 def _warn_isolation(result: SubmissionResult) -> None:
@@ -136,6 +193,7 @@ def run(args: argparse.Namespace) -> int:
     if source is None:
         raise CommandError("--source is required: the instructor's exercises folder (with the hidden "
                            "tests); this folder has no exercises/ with hidden tests")
+    _check_single(args, source)
     journal = args.journal or (f"{args.csv}.journal" if args.csv else None)
     if args.resume and not journal:
         raise CommandError("--resume needs --csv or --journal (where the interrupted grading wrote)")
@@ -147,6 +205,7 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(str(err)) from None
     try:
         results = _grade(args, source, book)
+        _refuse_grader_faults(results, book)
         if args.csv:
             try:
                 write_grades(args.csv, args.format, results, assignment=args.assignment)
@@ -154,6 +213,10 @@ def run(args: argparse.Namespace) -> int:
                 raise CommandError(str(err), where=os.fspath(args.csv)) from None
         if book is not None:
             book.close(finished=True)  # the class is graded: nothing to resume
+    except CommandError:
+        if book is not None and not args.resume and not book.added:
+            book.close(finished=True)  # refused before anything was graded: nothing to resume
+        raise
     finally:
         if book is not None:
             book.close(finished=False)
@@ -161,6 +224,17 @@ def run(args: argparse.Namespace) -> int:
         _warn_isolation(results[0])
     _show(args, results)
     return 0
+
+
+def _refuse_grader_faults(results: list, book: Journal | None) -> None:
+    """Stop (no gradebook, no journal to resume) if a test failed for a reason of the grader's own."""
+    faults = grader_faults(results)
+    if not faults:
+        return
+    if book is not None:
+        book.close(finished=True)  # its outcomes are the grader's failures: never to be resumed
+    raise CommandError(f"{len(faults)} test(s) failed for a reason of the grader's own, not the students' "
+                       f"(first: {printable(faults[0], 300)}); no gradebook written: fix it and grade again")
 
 
 def _grade(args: argparse.Namespace, source: str | Path, book: Journal | None) -> list:

@@ -55,8 +55,9 @@ def entry(argv: list[str] | None = None) -> int:
     args = p.parse_intermixed_args(argv)
     _lock(Path(args.source))
     Path(args.output).parent.mkdir(parents=True, exist_ok=True)
+    # the platform's upload folder is one submission, whatever else the student uploaded beside it
     cmd = ["grade", args.submission, "--source", args.source, "--isolation", args.isolation,
-           "--format", args.format, "--output", args.output]
+           "--format", args.format, "--output", args.output, "--layout", "submission"]
     for name in [*args.exercise, *args.names]:
         cmd += ["--exercise", name]
     out, err = io.StringIO(), io.StringIO()

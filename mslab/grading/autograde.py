@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING
 from mslab.grading.box import describe, wall_backstop
 from mslab.grading.box import setup as setup_cgroups
 from mslab.grading.box import teardown as teardown_cgroups
-from mslab.grading.dispatch import RUNNER_SLACK, STOP, run_runner
+from mslab.grading.dispatch import NOT_STARTED, RUNNER_SLACK, STOP, run_runner
 from mslab.grading.isolation import DESCRIPTION, detect, unreachable_for_others
 from mslab.grading.layout import HIDDEN, Exercise, expand_submissions, find_exercises, read_student_file
 from mslab.grading.owner import Owned, clean_abandoned, closed_to_others
@@ -39,6 +39,8 @@ if TYPE_CHECKING:
 
 #: CPU seconds the sandbox may spend importing the student's module (numpy takes about 0.2 s)
 IMPORT_CPU = 30.0
+#: why a whole item failed when the grader, not the student, failed
+GRADER_FAULTS = frozenset({NOT_STARTED})
 
 __all__ = ["ExerciseResult", "SubmissionResult", "TestResult", "format_report", "grade", "gradebook_rows"]
 
@@ -51,6 +53,8 @@ class TestResult:
     max_points: float
     passed: bool
     reason: str
+    #: failed for a reason of the grader's own (decided by the runner or the grader, never the sandbox)
+    grader_fault: bool = False
 
 
 @dataclass
@@ -146,8 +150,16 @@ def _score(exercise: Exercise, outcome: dict, errors: list[str], reason_all: str
             reason = _reason(test, entry)
         else:
             reason = errors[0] if errors else reason_all
-        result.tests.append(TestResult(test, max_points if passed else 0.0, max_points, passed, reason))
+        fault = bool(entry and entry.get("kind") == "grader") or (not entry and reason_all in GRADER_FAULTS)
+        result.tests.append(TestResult(test, max_points if passed else 0.0, max_points, passed, reason,
+                                       grader_fault=fault and not passed))
     return result
+
+
+def grader_faults(results: Iterable[SubmissionResult]) -> list[str]:
+    """Return ``student: test: reason`` of every test that failed for a reason of the grader's own."""
+    return [f"{r.student}: {t.test}: {t.reason}" for r in results for e in r.exercises for t in e.tests
+            if t.grader_fault]
 
 
 def _run_items(items: list[dict], ctx: dict, on_item: Callable[[str, dict], None]) -> tuple[set, str, str]:

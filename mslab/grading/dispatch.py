@@ -34,24 +34,39 @@ PACKAGE_ROOT = str(Path(__file__).resolve().parents[2])
 RUNNER_BOOT = "import sys; sys.path.insert(0, {root!r}); from mslab.grading.runner import main; main()"
 #: bytes of runner output the grader reads at most
 MAX_RUNNER_OUTPUT = 16 * 1024 * 1024
-#: address-space limit of a test runner (MB): it decodes what the sandbox answers
+#: address-space limit of a test runner (MB): it decodes what the sandbox answers; at least the
+#: sandbox's own limit, which the runner's children cannot raise above it (:func:`runner_memory_mb`)
 RUNNER_MEMORY_MB = 4096
+#: why every item of a runner that never said ``ready`` failed: the grader's fault, not a student's
+NOT_STARTED = "the test runner did not start"
 #: set when grading is interrupted: every runner is stopped and its folder removed
 STOP = threading.Event()
 
 
-def _runner_limits() -> None:
-    """In the runner, between fork and exec: bounded memory, and death with the grader."""
-    mem = RUNNER_MEMORY_MB * 1024 * 1024
-    resource.setrlimit(resource.RLIMIT_AS, (mem, mem))
-    resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
-    try:
-        ctypes.CDLL(None).prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
-    except (OSError, AttributeError):
-        pass
+def runner_memory_mb(sandbox_mb: int) -> int:
+    """Return the runner's address-space limit (MB) for sandboxes of ``sandbox_mb``.
+
+    A sandbox's limit is set by the runner's child, which without ``CAP_SYS_RESOURCE``
+    cannot raise a hard limit above the runner's: a smaller runner limit would fail every
+    sandbox's start (issue: ``--memory 8192`` zeroed the class).
+    """
+    return max(RUNNER_MEMORY_MB, int(sandbox_mb))
 
 
-def _spawn(tmp: str) -> subprocess.Popen:
+def _runner_limits(memory_mb: int) -> Callable[[], None]:
+    """Return what the runner runs between fork and exec: bounded memory, and death with the grader."""
+    def apply() -> None:
+        mem = runner_memory_mb(memory_mb) * 1024 * 1024
+        resource.setrlimit(resource.RLIMIT_AS, (mem, mem))
+        resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
+        try:
+            ctypes.CDLL(None).prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+        except (OSError, AttributeError):
+            pass
+    return apply
+
+
+def _spawn(tmp: str, memory_mb: int) -> subprocess.Popen:
     """Start a runner process (its folder ``tmp``, inside the grading's own folder)."""
     env = dict(os.environ, PYTEST_DISABLE_PLUGIN_AUTOLOAD="1", PYTHONDONTWRITEBYTECODE="1")
     env[HOME_ENV] = os.path.dirname(tmp)
@@ -59,7 +74,7 @@ def _spawn(tmp: str) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-E", "-s", "-P", "-c", RUNNER_BOOT.format(root=PACKAGE_ROOT)],
                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
                             start_new_session=True, env=env, cwd=os.path.abspath(os.sep),
-                            preexec_fn=_runner_limits)
+                            preexec_fn=_runner_limits(memory_mb))
 
 
 def run_runner(job: dict, walls: list[float], on_item: Callable[[str, dict], None]) -> tuple[set, str, str]:
@@ -78,7 +93,7 @@ def run_runner(job: dict, walls: list[float], on_item: Callable[[str, dict], Non
     keys = set(order)
     overran, why = "", ""
     done: set = set()
-    proc = _spawn(tmp)
+    proc = _spawn(tmp, int(job.get("memory_mb", 0)))
     sel = selectors.DefaultSelector()
     fd = proc.stdout.fileno()
     sel.register(fd, selectors.EVENT_READ)
@@ -97,7 +112,7 @@ def run_runner(job: dict, walls: list[float], on_item: Callable[[str, dict], Non
                     why = (f"timed out (wall-clock limit of {walls[len(done)]:.0f} s for one exercise "
                            "of one submission)")
                 else:
-                    why = "the test runner did not start"
+                    why = NOT_STARTED
                 break
             if not sel.select(timeout=min(left, 0.5)):
                 continue
@@ -113,7 +128,7 @@ def run_runner(job: dict, walls: list[float], on_item: Callable[[str, dict], Non
                 line, buf = buf.split(b"\n", 1)
                 if not ready:
                     if line != b"ready":
-                        return done, "the test runner did not start", ""
+                        return done, NOT_STARTED, ""
                     ready = True  # non-dumpable now: the nonce may go out
                     deadline = time.monotonic() + walls[0]
                     proc.stdin.write(json.dumps(job).encode())

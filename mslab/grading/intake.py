@@ -12,8 +12,9 @@ The rule (documented in the README) that tells one submission from a class of th
     keeps it (``NN_topic/<module>.py`` or ``.ipynb``, or ``<module>.py`` itself, the flat
     upload of the platforms), otherwise a class. A student folder *named* like an
     exercise (``01_spring_force/``) is a student like any other: only the file inside
-    decides, and a folder that looks both ways is refused with a request for
-    ``--layout``.
+    decides. One entry never decides for the others: a folder holding an exercise's file
+    and entries that look like students' (:func:`mslab.grading.layout._student_like`) is
+    refused with a request for ``--layout``.
 
 Every entry of a class gets a row: what cannot be graded (a hidden ``.name``, a file of
 another kind, a symbolic link) is a submission with the reason it was refused.
@@ -27,6 +28,7 @@ code cells.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import stat
@@ -37,6 +39,8 @@ from mslab.grading.report import printable
 from mslab.grading.unzip import MAX_DEPTH, MAX_MEMBERS, MAX_SOURCE, MAX_ZIP, is_source, name_problem
 
 LAYOUTS = ("auto", "class", "submission")
+#: how a gradebook's journal ends (``gradebook.csv.journal``): skipped in a class folder
+JOURNAL_SUFFIX = ".journal"
 O_READ = os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0)
 
 
@@ -168,6 +172,11 @@ def read_tree(folder: Path) -> tuple[dict[str, bytes] | None, str]:
     return files, ""
 
 
+def is_grader_file(path: Path) -> bool:
+    """Tell whether ``path`` is a gradebook's journal (``*.journal``): a grader's file, never a student."""
+    return path.name.endswith(JOURNAL_SUFFIX) and path.is_file() and not path.is_symlink()
+
+
 def class_entry(path: Path, single: bool) -> Submission:
     """One entry of a class folder as a submission, or refused with its reason."""
     name = path.name
@@ -184,3 +193,28 @@ def class_entry(path: Path, single: bool) -> Submission:
         refusal = "" if single else f"{name}: a single file needs one --exercise (the one it answers)"
         return Submission(path, stem, kind="file", refusal=refusal)
     return Submission(path, name, refusal=f"{name}: not a folder, .zip, .py or .ipynb: not graded")
+
+
+def unique_names(subs: list[Submission]) -> list[Submission]:
+    """Give every submission a row name of its own (shown as :func:`printable`, at most 120 characters).
+
+    A name that two entries share (``bob/`` and ``bob.zip``) becomes the entry's full name
+    (``bob.zip``); one still shared (names cut at 120 characters) keeps its first 111
+    characters and gets ``~`` and 8 hex digits of the entry's path. The same path twice
+    is the same student, with the same name.
+    """
+    shown = [printable(s.name) for s in subs]
+    for step in (lambda s: printable(s.path.name or str(s.path)), _hashed):
+        paths: dict[str, set[str]] = {}
+        for s, name in zip(subs, shown, strict=True):
+            paths.setdefault(name, set()).add(os.path.abspath(s.path))
+        shared = {name for name, where in paths.items() if len(where) > 1}
+        shown = [step(s) if name in shared else name for s, name in zip(subs, shown, strict=True)]
+    for s, name in zip(subs, shown, strict=True):
+        s.name = name
+    return subs
+
+
+def _hashed(sub: Submission) -> str:
+    digest = hashlib.sha256(os.fsencode(os.path.abspath(sub.path))).hexdigest()[:8]
+    return f"{printable(sub.path.name or str(sub.path), 111)}~{digest}"

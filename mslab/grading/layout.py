@@ -9,7 +9,15 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from mslab.grading.intake import LAYOUTS, Submission, class_entry, notebook_code, read_path
+from mslab.grading.intake import (
+    LAYOUTS,
+    Submission,
+    class_entry,
+    is_grader_file,
+    notebook_code,
+    read_path,
+    unique_names,
+)
 from mslab.grading.report import printable
 
 BEGIN, END = "# BEGIN SOLUTION", "# END SOLUTION"
@@ -114,18 +122,37 @@ def looks_like_submission(folder: Path, exercises: list[Exercise], flat: bool = 
                for ex in exercises for parts in _candidates(ex, flat))
 
 
-def _is_one_submission(path: Path, exercises: list[Exercise], layout: str) -> bool:
+def _student_like(entry: Path, exercises: list[Exercise]) -> bool:
+    """Tell whether an entry would be a student's in a class.
+
+    That is a folder holding an exercise's file, a zip, or (one exercise graded) a ``.py`` /
+    ``.ipynb`` other than the exercise's, ``conftest.py`` or a test.
+    """
+    if entry.name.startswith(".") or entry.is_symlink() or entry.name in {e.name for e in exercises}:
+        return False
+    if entry.is_dir():
+        return looks_like_submission(entry, exercises)
+    if entry.name.endswith(".zip"):
+        return True
+    own = {p[-1] for ex in exercises for p in _candidates(ex, True)} | {"conftest.py"}
+    loose = len(exercises) == 1 and entry.name.endswith((".py", ".ipynb"))  # as :func:`class_entry` grades
+    return loose and entry.name not in own and not TEST.match(entry.name)
+
+
+def _is_one_submission(path: Path, exercises: list[Exercise], layout: str, skip: set[str]) -> bool:
+    """Apply the auto rule: one submission if its file is there and no other entry looks like a student."""
     if layout != "auto":
         return layout == "submission"
-    children = [p for p in path.iterdir() if p.is_dir() and not p.is_symlink() and not p.name.startswith(".")]
-    nested = [p.name for p in children if looks_like_submission(p, exercises, flat=False)]
+    entries = [p for p in sorted(path.iterdir()) if os.path.abspath(p) not in skip and not is_grader_file(p)]
+    students = [p.name for p in entries if _student_like(p, exercises)]
     if looks_like_submission(path, exercises):
-        if nested:
-            raise ValueError(f"{path}: holds exercise files and student folders "
-                             f"({printable(nested[0], 40)}); say --layout class or --layout submission")
+        if students:
+            raise ValueError(f"{path}: holds an exercise's file and other entries that look like students' "
+                             f"({printable(students[0], 40)}, {len(students)} in all): say --layout class "
+                             "or --layout submission")
         return True
     names = {e.name for e in exercises}  # exercise folders, none with its file: an empty submission
-    return not nested and any(p.name in names for p in children)
+    return not students and any(p.is_dir() and p.name in names for p in entries)
 
 
 def expand_submissions(paths: Iterable[str | Path], exercises: list[Exercise], layout: str = "auto",
@@ -144,15 +171,16 @@ def expand_submissions(paths: Iterable[str | Path], exercises: list[Exercise], l
         path = Path(raw)
         if not path.is_dir():
             raise ValueError(f"{path}: no such folder")
-        if _is_one_submission(path, exercises, layout):
+        if _is_one_submission(path, exercises, layout, skip):
             refusal = "the submission folder is a symbolic link (refused)" if path.is_symlink() else ""
             out.append(Submission(path, path.name or str(path), refusal=refusal))
             continue
-        entries = [p for p in sorted(path.iterdir()) if os.path.abspath(p) not in skip]
+        entries = [p for p in sorted(path.iterdir())
+                   if os.path.abspath(p) not in skip and not is_grader_file(p)]
         if not entries:
             raise ValueError(f"{path}: an empty class folder (no student folder, .zip or file)")
         out.extend(class_entry(p, len(exercises) == 1) for p in entries)
-    return out
+    return unique_names(out)
 
 
 def read_student_file(submission: Submission, exercise: Exercise) -> tuple[str | None, str]:

@@ -160,8 +160,9 @@ def canvas_rows(results: Sequence[SubmissionResult], assignment: str | None = No
                 id_column: str = "SIS Login ID") -> list[list[str]]:
     """Return a Canvas gradebook import: header, ``Points Possible``, one row per student.
 
-    The student's folder name goes into ``Student`` and into ``id_column`` (one of
-    Canvas's identity columns, by default ``SIS Login ID``: name the folders by it); the
+    The student's row name (:func:`mslab.grading.intake.unique_names`) goes into ``Student``
+    and into ``id_column`` (one of Canvas's identity columns, by default ``SIS Login ID``: name
+    the folders by it; never formula-escaped, :func:`login_cell`); the
     total goes into the one ``assignment`` column (``"Title (canvas id)"`` to update an
     existing assignment; a title alone makes Canvas create one).
     """
@@ -173,9 +174,19 @@ def canvas_rows(results: Sequence[SubmissionResult], assignment: str | None = No
     rows = [[*CANVAS_COLUMNS, csv_cell(title)], [CANVAS_POINTS_ROW, "", "", "", "", f"{maximum:g}"]]
     for r in results:
         row = [csv_cell(r.student), "", "", "", "", f"{r.total:g}"]
-        row[column] = csv_cell(r.student)
+        row[column] = login_cell(r.student)
         rows.append(row)
     return rows
+
+
+def login_cell(name: str) -> str:
+    """Return the identity cell of a Canvas row: the name as it is, or empty if a spreadsheet would run it.
+
+    Escaping (``'-dash``) would make a login that is no one's, so a name starting with one
+    of ``= + - @`` (or holding an escaped character) leaves the cell empty: Canvas's import
+    preview then lists the row as unmatched instead of matching someone else.
+    """
+    return name if name == csv_cell(name) and "\\" not in name else ""
 
 
 def check_format(fmt: str, output: str | None, n_paths: int, assignment: str | None) -> None:

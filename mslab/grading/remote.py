@@ -39,6 +39,7 @@ PHRASES = {
     "memory": "ran out of memory",
     "died": "the process died",
     "error": "failed",
+    "grader": "the grader failed (not the student's fault)",
 }
 
 
@@ -194,10 +195,15 @@ class Sandbox:
         argv, fds, cwd = self._command()
         self.box = Box(self.cgroups, self.memory_mb)
         env = self._env() if self.uid is None else dict(self._env(), HOME=str(cwd), TMPDIR=str(cwd))
-        self.proc = subprocess.Popen(
-            argv, cwd=cwd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-            env=env, start_new_session=True, pass_fds=fds,
-            preexec_fn=_limits(self.memory_mb, self.cpu_s, self.file_mb, self.mode, self.box, self.uid))
+        try:
+            self.proc = subprocess.Popen(
+                argv, cwd=cwd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                env=env, start_new_session=True, pass_fds=fds,
+                preexec_fn=_limits(self.memory_mb, self.cpu_s, self.file_mb, self.mode, self.box, self.uid))
+        except (OSError, subprocess.SubprocessError) as err:  # before any student code: the grader's own
+            self.broken = StudentError(f"the grader could not start the sandbox ({type(err).__name__}: "
+                                       f"{str(err)[:200]})", "grader")
+            raise self.broken from None
         self.box.started(self.proc.pid)
         self._buf = b""
         try:

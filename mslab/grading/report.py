@@ -98,6 +98,7 @@ class Journal:
         self.fingerprint = ""
         self._lines: list[str] = []
         self.done: dict[str, dict] = {}
+        self.added = 0  # outcomes appended by this grading
         if resume:
             with os.fdopen(os.dup(self._fd), "rb") as fh:
                 self._lines = fh.read().decode(errors="replace").splitlines()
@@ -121,6 +122,7 @@ class Journal:
         os.lseek(self._fd, 0, os.SEEK_END)
         os.write(self._fd, line.encode())
         os.fsync(self._fd)
+        self.added += 1
 
     def close(self, finished: bool) -> None:
         """Release the journal; a finished grading removes it first (still holding the lock)."""
