@@ -105,3 +105,23 @@ def test_a_platform_upload_with_other_files_is_still_one_submission(tmp_path):
     assert entry(["gradescope", str(upload), str(source), str(out), "--isolation", "auto", TARGET]) == 0
     doc = json.loads(out.read_text())
     assert doc["score"] == sum(t["max_score"] for t in doc["tests"]) > 0, doc
+
+
+def test_some_tests_the_grader_failed_are_reported_and_the_class_still_graded(capsys):
+    """A sandbox that could not start after others ran (a student may have caused it) never stops the
+    class's grading: the gradebook is written and one warning names those tests; only a grading whose
+    every test the grader failed is refused."""
+    from mslab.commands.common import CommandError
+    from mslab.commands.grade import _refuse_grader_faults
+    from mslab.grading.autograde import ExerciseResult, SubmissionResult, TestResult
+
+    def student(name: str, fault: bool) -> SubmissionResult:
+        test = TestResult("test_step", 0.0 if fault else 1.0, 1.0, not fault,
+                          "the grader failed" if fault else "", grader_fault=fault)
+        return SubmissionResult(name, name, [ExerciseResult(TARGET, [test])])
+
+    _refuse_grader_faults([student("ann", False), student("bob", True)], None)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("mslab: warning: 1 test(s)") and "bob: test_step" in err[0]
+    with pytest.raises(CommandError, match="2 test"):
+        _refuse_grader_faults([student("ann", True), student("bob", True)], None)

@@ -227,14 +227,27 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _refuse_grader_faults(results: list, book: Journal | None) -> None:
-    """Stop (no gradebook, no journal to resume) if a test failed for a reason of the grader's own."""
+    """Stop (no gradebook, no journal to resume) when every test failed for a reason of the grader's own.
+
+    Then the grader is misconfigured (a limit the system cannot honour), and a gradebook would
+    be a class of zeros. When only some tests did (a sandbox that could not start after others
+    ran: a student may have caused it), the gradebook is written and a warning names them, so
+    that no student can stop the class's grading.
+    """
     faults = grader_faults(results)
     if not faults:
+        return
+    total = sum(len(e.tests) for r in results for e in r.exercises)
+    first = printable(faults[0], 300)
+    if len(faults) < total:
+        print(f"mslab: warning: {len(faults)} test(s) failed for a reason of the grader's own, not the "
+              f"students' (first: {first}); their marks are not the students': grade them again",
+              file=sys.stderr)
         return
     if book is not None:
         book.close(finished=True)  # its outcomes are the grader's failures: never to be resumed
     raise CommandError(f"{len(faults)} test(s) failed for a reason of the grader's own, not the students' "
-                       f"(first: {printable(faults[0], 300)}); no gradebook written: fix it and grade again")
+                       f"(first: {first}); no gradebook written: fix it and grade again")
 
 
 def _grade(args: argparse.Namespace, source: str | Path, book: Journal | None) -> list:
