@@ -278,7 +278,31 @@ MUTATIONS = [   # (lesson, text of a backed sentence, the same text made wrong, 
      "below 3: no printed value fits"),
     ("06_energy_drift.ipynb", "more than three times the 30 s value", "less than three times the 30 s value",
      "below 3: no printed value fits"),
+    # and the same reviewer's swapped subjects: the claim's statement says which side each one is on
+    ("05_dahlquist_stability.ipynb", "Radau IIA (order 3) damps more than SDIRK2\n(order 2)",
+     "SDIRK2 (order 2) damps more than Radau IIA\n(order 3)", "the sentence puts sdirk2 before radau_iia2"),
+    ("00_mass_spring_systems.ipynb", "but lumping the mass where the material is does better",
+     "but equal masses do better", "'better': the sentence says it of equal, its claim of lumped"),
+    ("02_heun_midpoint_rk4.ipynb", "Heun's about 2000 times RK4's", "RK4's about 2000 times Heun's",
+     "'times': the sentence puts rk4 before heun"),
 ]
+
+
+@pytest.mark.parametrize("sentence, statement, problem", [
+    ("Leapfrog is faster than RK4.", "rk4 is faster than leapfrog", "puts leapfrog before rk4"),
+    ("Symplectic Euler's error is 5 times Heun's.", "heun's error is 5 times symplectic_euler's",
+     "puts symplectic_euler before heun"),
+    ("Forward Euler does better.", "heun does better than euler", "says it of euler, its claim of heun"),
+    ("Leapfrog is faster than RK4.", "leapfrog is faster than rk4", None),
+    ("Symplectic Euler is faster than Euler.", "symplectic_euler is faster than euler", None),  # not "euler"
+    ("Its peak is less than half of Forest–Ruth's.", "smaller than forest_ruth's, less than half", None),
+    ("RK4 is faster.", "rk4 is more accurate than heun", None),  # another pivot: nothing to say
+])
+def test_the_subjects_of_a_comparison_sit_where_the_claim_puts_them(sentence, statement, problem):
+    from mslab.claims_order import reversed_comparisons
+
+    found = reversed_comparisons(sentence, [statement])
+    assert (found == []) if problem is None else (len(found) == 1 and problem in found[0]), found
 
 
 UNITS = ("claim holds: [v] it drifts apart, blows up and grows  (moved = 1e-09 m, apart_by = 1 cm, "

@@ -24,8 +24,7 @@ very start of a paragraph, block quote or list item covers that whole block:
     "between 3 and 5" one inside, "10 or more" one at least 10 (inside ``$...$``: ``<``,
     ``\\le``, ``\\approx``); a number word counts where it is a factor ("seven times", "tenfold");
   - a number with a unit ("within 10 s", "6 steps", "three times") is held to the printed values
-    of that unit (``mslab.claims.UNITS``), when there are any. Not checked: which side of a
-    comparison each subject is on (the claim's statement carries it);
+    of that unit (``mslab.claims.UNITS``), when there are any;
   - every magnitude word ("several", "tens", "twice", "halves", ...) has a printed value in
     its range, written once in ``mslab.claims.MAGNITUDES``;
   - every share word ("a fifth", "two thirds", "one in four", "nine in ten", "most of", "the
@@ -33,7 +32,7 @@ very start of a paragraph, block quote or list item covers that whole block:
     range, written once in ``mslab.claims.FRACTIONS``; a bound ("more than half", "over a
     third", "half of it or more") bounds the share by its nominal value;
   - every verdict word ("faster", "only", "never", "same", "bounded", ...) appears in the
-    statement of one of its claims.
+    statement of one of its claims, with its subjects on the same sides (``mslab.claims_order``).
 
 * ``<!-- no-claim: REASON -->`` (or ``REASON: a few words``) marks a sentence that is not a
   measurement; REASON is one of ``mslab.claims.NO_CLAIM_REASONS`` and the words never name a claim.
@@ -68,6 +67,7 @@ from mslab.claims import (  # noqa: E402
     parse_printed,
     share_range,
 )
+from mslab.claims_order import reversed_comparisons  # noqa: E402
 
 LESSONS = ROOT / "lessons"
 
@@ -356,8 +356,9 @@ def check_markdown(path: Path, index: int, text: str, defined: set[str],
             ids = _backing(comments, defined)[0]
             if ids:
                 claims = [holding[cid] for cid in ids if cid in holding]
-                found += [Finding(path, index, f"{sentence} [{p}]")
-                          for p in disagreements(numeric[s0:s1], claims)] if claims else []
+                problems = disagreements(numeric[s0:s1], claims) + reversed_comparisons(
+                    COMMENT.sub(" ", sentence).replace("`", ""), [c.statement for c in claims])
+                found += [Finding(path, index, f"{sentence} [{p}]") for p in problems] if claims else []
     return found
 
 
