@@ -39,6 +39,7 @@ import numpy as np
 from mslab import fast, jit, stopping
 from mslab.checks import flag, real, whole
 from mslab.errors import ConvergenceError, InstabilityError, StepFailure
+from mslab.initial import check_initial_state
 from mslab.integrators.base import Integrator, get_method
 from mslab.ledger import NEVER, Samples, initial_energy_scale
 from mslab.state import State
@@ -101,6 +102,7 @@ class Simulation:
 
         if not isinstance(scene, Scene):
             raise TypeError(f"scene must be an mslab Scene, got {type(scene).__name__}")
+        check_initial_state(scene)  # cheap, before the copy and any set-up
         s = scene.settings
         if backend is not None and not isinstance(backend, str):
             raise TypeError(f"backend must be a string or None, got {type(backend).__name__}")
@@ -123,10 +125,6 @@ class Simulation:
         stable_dt = None if stable_dt is None else real("stable_dt", stable_dt, minimum=0.0)  # 0: none
         check_stability = flag("check_stability", check_stability)
         state0 = own.state0
-        for what, values in (("positions", state0.x), ("velocities", state0.v)):
-            if not np.all(np.isfinite(values)):  # before any work: a run from NaN "blows up" at step 1
-                raise ValueError(f"initial state: {what} are not finite (NaN or inf) at particles "
-                                 f"{np.flatnonzero(~np.all(np.isfinite(values), axis=-1))[:5].tolist()}")
         self.blowup = blowup
         self.stable_dt = stable_dt
         if check_stability and self.integrator.explicit:
