@@ -105,7 +105,7 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
                      energy_blowup=energy_blowup, threads=threads, dtype=dtype, _stacklevel=3)
     sim.advance(progress=progress)
     _frame_loop_hint(scene, sim, time.perf_counter() - begun)
-    return sim.trajectory
+    return sim._trajectory(sim._samples.k, True, current=True, handover=True)  # the session is dropped
 
 
 #: a call of at most this many steps is a "short" one; this many alike in a row on one system warn once

@@ -53,3 +53,50 @@ def test_a_state0_of_the_wrong_kind_is_one_error_naming_it(make, error, text, ba
     assert sc.n_particles == 10 and sc.dim == 2
     with pytest.raises(error, match=text):
         mslab.simulate(with_state(sc, x=make(sc.state0.x)), backend=backend)
+
+
+# -- D1: the session's own system, method, counters and length cannot change the run -------------
+BACKENDS = ["numpy", "numba"]
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_what_a_session_hands_out_cannot_change_its_run(backend):
+    clean = mslab.simulate(chain(), "rk4", 1e-3, 0.1, backend=backend)
+    sim = mslab.Simulation(chain(), "rk4", 1e-3, t_end=0.1, backend=backend)
+    sim.advance(50)
+    springs = sim.system.effects[0]
+    with pytest.raises(ValueError, match="read-only"):
+        springs.stiffness[:] *= 100
+    with pytest.raises(ValueError, match="read-only"):
+        sim.system.mass[:] = 5.0
+    with pytest.raises(ValueError, match="read-only"):
+        sim.integrator.b[:] = [1.0, 0.0, 0.0, 0.0]
+    for name in ("end", "system", "integrator", "stats", "dt", "save_every"):
+        with pytest.raises(AttributeError):
+            setattr(sim, name, 10**6)
+    stats = sim.stats
+    stats.n_force = 10**9  # a copy
+    sim.advance()
+    assert sim.step == 100 and sim.stats.n_force == clean.stats.n_force
+    out = sim.trajectory
+    np.testing.assert_array_equal(out.x, clean.x)
+    assert out.stats.n_force == clean.stats.n_force
+
+
+# -- D2: a finished session's trajectory: one reader's edits never reach the next -----------------
+@pytest.mark.parametrize("t_end", [0.1, None])
+def test_a_finished_sessions_trajectory_is_not_shared_writable(t_end):
+    sim = mslab.Simulation(chain(), "rk4", 1e-3, t_end=t_end)
+    sim.advance(100)
+    first = sim.trajectory
+    for array in (first.x, first.v, first.energy.kinetic, first.energy.potential):
+        try:
+            array[...] = 7.0
+        except ValueError as err:  # a read-only view of the finished run's store
+            assert "read-only" in str(err)
+    again = sim.trajectory
+    assert not np.any(again.x == 7.0) and not np.any(again.energy.kinetic == 7.0)
+    # simulate drops its session: its result is the caller's own, writable, as before
+    result = mslab.simulate(chain(), "rk4", 1e-3, 0.1)
+    result.x[:] = 0.0
+    assert result.x.flags.writeable
