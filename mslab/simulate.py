@@ -24,8 +24,10 @@ import time
 import warnings
 import weakref
 
+from mslab.checks import shown
 from mslab.integrators.base import Integrator
 from mslab.ledger import initial_energy_scale, xs_bytes
+from mslab.progress import check_progress
 from mslab.scene import Scene
 from mslab.simulation import Simulation, SimulationInterrupted
 from mslab.steps import step_count
@@ -98,6 +100,10 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
     SimulationInterrupted
         Ctrl-C (``.trajectory`` keeps the saved part).
     """
+    if not isinstance(scene, Scene):  # before reading its settings
+        hint = f" (a scene name: mslab.load_scene({scene!r}))" if isinstance(scene, str) else ""
+        raise TypeError(f"scene must be an mslab Scene{hint}, got {type(scene).__name__} {shown(scene)}")
+    check_progress(progress)  # cheap checks before the session's set-up
     s = scene.settings
     begun = time.perf_counter()
     sim = Simulation(scene, method, dt, t_end=s.t_end if t_end is None else t_end, save_every=save_every,

@@ -100,3 +100,81 @@ def test_a_finished_sessions_trajectory_is_not_shared_writable(t_end):
     result = mslab.simulate(chain(), "rk4", 1e-3, 0.1)
     result.x[:] = 0.0
     assert result.x.flags.writeable
+
+
+# -- D5, D6, D8: arguments checked before use, one error naming each -----------------------------
+@pytest.mark.parametrize(("call", "error", "text"), [
+    (lambda sc: mslab.simulate("chain"), TypeError, r"scene must be an mslab Scene .*load_scene\('chain'\)"),
+    (lambda sc: mslab.simulate(None), TypeError, "scene must be an mslab Scene"),
+    (lambda sc: mslab.simulate(sc, t_end=0.01, progress="yes"), TypeError, "progress must be"),
+    (lambda sc: mslab.Simulation(sc, "rk4", 1e-3).advance(3, progress=5), TypeError, "progress must be"),
+    (lambda sc: mslab.simulate(sc, dt=10**400), ValueError, "dt must be a finite number"),
+    (lambda sc: mslab.simulate(sc, t_end=10**400), ValueError, "t_end must be a finite number"),
+    (lambda sc: mslab.simulate(sc, blowup=10**400), ValueError, "blowup must be a finite number"),
+    (lambda sc: mslab.Simulation(sc, t_end=10**400), ValueError, "t_end must be a finite number"),
+    (lambda sc: mslab.load_scene("chain", dt=10**400), mslab.SceneError, r"run\.dt: must be a finite number"),
+    (lambda sc: mslab.load_scene("chain", max_bytes=-1), ValueError, "max_bytes must be >= 1"),
+    (lambda sc: mslab.load_scene("chain", max_bytes=True), TypeError, "max_bytes must be a whole number"),
+    (lambda sc: mslab.load_scene("chain", max_bytes="1G"), TypeError, "max_bytes must be a whole number"),
+])
+def test_bad_arguments_give_one_error_naming_them(call, error, text):
+    with pytest.raises(error, match=text) as info:
+        call(chain())
+    assert "\n" not in str(info.value) and len(str(info.value)) < 300
+
+
+def test_progress_is_checked_before_the_set_up(monkeypatch):
+    from mslab import simulation
+
+    monkeypatch.setattr(simulation.Simulation, "__init__", lambda *a, **k: pytest.fail("set-up started"))
+    with pytest.raises(TypeError, match="progress"):
+        mslab.simulate(chain(), t_end=0.01, progress="yes")
+
+
+def test_overrides_are_plain_floats():
+    settings = mslab.load_scene("chain", t_end=np.float64(2), dt=np.float64(1e-3)).settings
+    assert type(settings.t_end) is float and type(settings.dt) is float and settings.t_end == 2.0
+
+
+# -- D9: a huge scene file is refused by its size, before it is read ------------------------------
+def test_a_huge_scene_file_is_refused_before_parsing(tmp_path, capsys):
+    import time
+
+    from mslab.cli import main
+    from mslab.scenes.toml_read import MAX_FILE_BYTES
+
+    path = tmp_path / "huge.toml"
+    entries = MAX_FILE_BYTES // len("[0.0, 0.0], ") + 10
+    path.write_text("[particles]\npositions = [" + "[0.0, 0.0], " * entries + "]\n")
+    begun = time.perf_counter()
+    with pytest.raises(mslab.SceneError, match=r"file: .*MiB, more than the 8 MiB") as info:
+        mslab.load_scene(path)
+    assert time.perf_counter() - begun < 0.5 and "generator" in str(info.value)
+    assert main(["validate", str(path)]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith(f"mslab: error: {path}: file: ")
+
+
+# -- D10: --jobs beyond the CPUs is capped to them -----------------------------------------------
+def test_jobs_beyond_the_cpus_are_capped(monkeypatch, capsys):
+    import importlib
+
+    from mslab import precision
+    from mslab.cli import main
+
+    wp = importlib.import_module("mslab.precision.work_precision")  # the module, not the function
+    from mslab.scenes import oscillator
+
+    pools: list[int] = []
+    real_run = wp._run_tasks
+    monkeypatch.setattr(wp, "usable_cpus", lambda: 1, raising=False)
+    monkeypatch.setattr(wp, "_run_tasks", lambda tasks, jobs, bar: pools.append(jobs) or real_run(tasks, jobs,
+                                                                                                   bar))
+    records = precision.work_precision(oscillator(), ["rk4"], [0.1, 0.05], t_end=1.0, timing=False, jobs=300)
+    assert len(records) == 2 and max(pools) == 1
+    from mslab.precision import runs
+
+    monkeypatch.setattr(runs, "usable_cpus", lambda: 1, raising=False)
+    assert main(["precision", "oscillator", "--methods", "rk4", "--t-end", "1", "--dts", "0.1", "0.05",
+                 "--scipy", "--no-timing", "--jobs", "300", "--json"]) == 0
+    assert '"jobs": 1' in capsys.readouterr().out
