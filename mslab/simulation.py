@@ -45,7 +45,7 @@ from mslab.ledger import NEVER, Samples, initial_energy_scale
 from mslab.owned import read_only, read_only_arrays, samples_trajectory
 from mslab.state import State
 from mslab.stepping import CompiledLoop, LedgerOver, NumpyLoop, interpolate_marks
-from mslab.steps import check_dt, step_count
+from mslab.steps import check_dt, step_count, steps_to_take
 from mslab.stopping import LedgerCheck, hint, position_limit
 from mslab.trajectory import Stats, Trajectory
 
@@ -188,6 +188,14 @@ class Simulation:
             return self._failed.trajectory
         return self._trajectory(self._samples.k, True, current=True)
 
+    def __repr__(self) -> str:
+        """Return a one-line summary (scene, method, dt, steps, loop), never the arrays."""
+        end = self.end
+        length = f"{self.step} of {end} steps" if end is not None else f"{self.step} steps, open-ended"
+        stopped = ", stopped" if self._failed is not None else ""
+        return (f"Simulation({self._scene.name!r}: {self.integrator.name} dt={self.dt:g}, {length}, "
+                f"{'compiled' if self.compiled else 'numpy'} loop{stopped})")
+
     # -- stepping ------------------------------------------------------------------------------
     def advance(self, n: int | None = None, *, t: float | None = None, progress: object = False) -> None:
         """Take ``n`` more steps (or ``t`` more seconds, a whole number of steps; neither: to ``t_end``).
@@ -209,7 +217,7 @@ class Simulation:
     def _advance_locked(self, n: int | None, t: float | None, progress: object) -> None:
         if self._failed is not None:
             raise ValueError(f"the session stopped at step {self.step}: {self._failed}")
-        count = self._count(n, t)
+        count = steps_to_take(n, t, self.dt, self.step, self.end)
         if self.end is not None and self.step + count > self.end:
             raise ValueError(f"the session ends at step {self.end} (t_end); {count} more steps from "
                              f"step {self.step} go beyond")
@@ -221,17 +229,6 @@ class Simulation:
         else:
             with jit.threads(self.threads):
                 self._advance(count, progress)
-
-    def _count(self, n: int | None, t: float | None) -> int:
-        if n is not None and t is not None:
-            raise ValueError("advance takes a number of steps or a time t, not both")
-        if t is not None:  # t = 0 is 0 steps, as n = 0 is
-            return 0 if real("t", t, minimum=0.0) == 0.0 else step_count(t, self.dt)
-        if n is None:
-            if self.end is None:
-                raise ValueError("advance needs a number of steps or a time t (the session has no t_end)")
-            return self.end - self.step
-        return whole("n", n, 0)
 
     def _begin(self) -> None:
         """Choose the loop (``auto``: from the declared length, else :data:`HORIZON`) and start the method."""

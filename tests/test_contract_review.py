@@ -178,3 +178,56 @@ def test_jobs_beyond_the_cpus_are_capped(monkeypatch, capsys):
     assert main(["precision", "oscillator", "--methods", "rk4", "--t-end", "1", "--dts", "0.1", "0.05",
                  "--scipy", "--no-timing", "--jobs", "300", "--json"]) == 0
     assert '"jobs": 1' in capsys.readouterr().out
+
+
+# -- D14: a reader that leaves early (mslab methods | head) ends the command quietly ---------------
+def test_a_broken_pipe_ends_quietly():
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    read, write = os.pipe()
+    os.close(read)  # the reader is gone before mslab writes a line
+    try:
+        done = subprocess.run([sys.executable, "-m", "mslab", "methods"], stdout=write,
+                              stderr=subprocess.PIPE, text=True, timeout=300,
+                              env={**os.environ, "PYTHONPATH": str(root)})
+    finally:
+        os.close(write)
+    assert done.stderr == "" and done.returncode == 141
+
+
+# -- D11, D12, D13: step counts beyond float64, messages about the argument given ----------------
+def test_advance_beyond_what_a_run_can_count_is_refused():
+    sim = mslab.Simulation(chain(), "rk4", 1e-3)
+    with pytest.raises(ValueError, match="more than a run can count exactly"):
+        sim.advance(2**53 + 1)
+    assert sim.step == 0
+
+
+def test_advance_t_messages_name_t_and_suggest_a_time():
+    sim = mslab.Simulation(chain(), "rk4", 1e-3)
+    with pytest.raises(ValueError, match=r"^t = 0\.0105 is not a whole number .*; use t = 0\.01 \(10 st"):
+        sim.advance(t=0.0105)
+    with pytest.raises(ValueError, match=r"^t = 1e\+300 is .*more than a run can count"):
+        sim.advance(t=1e300)
+
+
+def test_a_dt_close_to_a_valid_one_is_shown_with_its_digits():
+    with pytest.raises(ValueError) as info:
+        mslab.simulate(chain(), dt=np.float32(1e-3), t_end=0.01)
+    given, use = str(info.value).split("; use ")
+    assert "0.0010000000474974513" in given and use == "dt = 0.001 (10 steps)"
+
+
+# -- D15: reprs are one-line summaries ------------------------------------------------------------
+def test_state_energy_and_session_reprs_are_one_line():
+    cloth = mslab.load_scene("cloth")
+    sim = mslab.Simulation(cloth, "verlet", cloth.settings.dt / 8, backend="numpy")
+    sim.advance(2)
+    for obj in (sim, sim.state, sim.trajectory.energy):
+        text = repr(obj)
+        assert "\n" not in text and len(text) < 200 and " at 0x" not in text, text
+    assert repr(sim).startswith("Simulation('cloth': verlet")
