@@ -231,3 +231,23 @@ def test_state_energy_and_session_reprs_are_one_line():
         text = repr(obj)
         assert "\n" not in text and len(text) < 200 and " at 0x" not in text, text
     assert repr(sim).startswith("Simulation('cloth': verlet")
+
+
+# -- D16: small corner cases of options and names -------------------------------------------------
+def test_python_digit_separators_are_no_command_line_number(capsys):
+    from mslab.cli import main
+
+    for option in (["--dt", "1_000"], ["--save-every", "1_0"]):
+        assert main(["run", "chain", *option]) == 2
+        err = capsys.readouterr().err.splitlines()
+        assert len(err) == 1 and "must be a" in err[0] and "1_0" in err[0], err
+
+
+@pytest.mark.parametrize("char", ["\u202e", "\u200b", "\u2028", "\x85"])
+def test_a_scene_name_with_an_invisible_character_is_refused(char):
+    from mslab.files import file_stem, name_problem
+
+    assert "U+" in name_problem(f"a{char}b")
+    with pytest.raises(ValueError, match="scene name"):
+        file_stem(f"a{char}b")
+    assert name_problem("my scene: é") is None
