@@ -37,7 +37,10 @@ def real(name: str, value: object, *, positive: bool = False, minimum: float | N
     """
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
         raise TypeError(f"{name} must be a number, got {type(value).__name__} {shown(value)}")
-    number = float(value)
+    try:
+        number = float(value)
+    except OverflowError:  # an int beyond any float (10**400)
+        raise ValueError(f"{name} must be a finite number, got an int of {len(str(value))} digits") from None
     if np.isnan(number) or (np.isinf(number) and not (allow_inf and number > 0)):
         raise ValueError(f"{name} must be a finite number, got {shown(value)}")
     if positive and not number > 0:

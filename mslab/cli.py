@@ -3,7 +3,8 @@
 Every user mistake ends as one line ``mslab: error: ...`` with exit code 2 and no
 traceback; every subcommand takes ``--json`` and (where it writes) ``--out DIR``. Ctrl-C ends
 with exit code 130 and one line at any moment (:mod:`mslab.interrupts`); a compilation by
-numba is announced on stderr (not with ``--json``).
+numba is announced on stderr (not with ``--json``). When the reader of the output goes away
+(``mslab methods | head -5``), the command ends quietly with exit code 141, as other tools do.
 """
 
 from __future__ import annotations
@@ -19,6 +20,8 @@ from mslab.errors import MslabError, take_broken
 #: subcommand modules in mslab.commands, in the order ``mslab --help`` lists them
 COMMANDS = ("scenes", "methods", "run", "compare", "precision", "stability", "validate", "grade", "release",
             "bench")
+#: exit code when the reader of the output has gone (a broken pipe): 128 + SIGPIPE, as a shell reports
+EXIT_READER_LEFT = 141
 
 
 class _Parser(argparse.ArgumentParser):
@@ -54,6 +57,9 @@ def main(argv: list[str] | None = None) -> int:
     with interrupts.command_line():
         try:
             code = _main(argv)
+            sys.stdout.flush()  # (what is still buffered: its reader may have left too)
+        except BrokenPipeError:
+            code = _reader_left()
         except KeyboardInterrupt:
             interrupts.finishing()
             print("mslab: interrupted", file=sys.stderr)
@@ -83,12 +89,29 @@ def _main(argv: list[str] | None) -> int:
     jit.announce_with(None if getattr(args, "json", False) else compile_notice)
     try:
         return int(args.func(args) or 0)
+    except BrokenPipeError:
+        return _reader_left()
     except (CommandError, MslabError, ValueError, OSError) as err:
         message = str(err).splitlines()[0] if str(err) else type(err).__name__
         if isinstance(err, OSError) and err.filename and err.strerror:  # not "[Errno 13] ...: 'path'"
             message = f"{err.filename}: {err.strerror.lower()}"
         print(f"mslab: error: {message}", file=sys.stderr)
         return 2
+
+
+def _reader_left() -> int:
+    """End quietly when the output's reader has gone (``mslab methods | head``), as other tools do.
+
+    Later writes (the interpreter's last flush) go nowhere; the exit code is 141, a shell's
+    code for a program ended by SIGPIPE.
+    """
+    import os
+
+    try:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    except (OSError, ValueError):  # a stdout without a file descriptor (a test's capture)
+        pass
+    return EXIT_READER_LEFT
 
 
 if __name__ == "__main__":

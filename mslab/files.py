@@ -107,7 +107,8 @@ def name_problem(name: object) -> str | None:
     The one rule of what a scene name may be, read by the scene loader (so ``mslab validate``
     refuses what ``mslab run`` would refuse) and by :func:`file_stem`: a non-empty string of at
     most :data:`MAX_STEM` characters that is not a path (no ``/`` or ``\``, not ``.`` or
-    ``..``, no leading dot) and holds no control character (NUL, newline, ...).
+    ``..``, no leading dot) and holds no control character (NUL, newline, ...) and no invisible
+    format or line-separator character (U+202E, which reverses how the text after it shows).
     """
     if not isinstance(name, str):
         return f"must be a string, got {type(name).__name__}"
@@ -119,9 +120,12 @@ def name_problem(name: object) -> str | None:
         return "is a name, not a path: no '/' or '\\' (output files are named after it)"
     if name.startswith("."):
         return "must not start with '.' (output files are named after it: '..' or a hidden file)"
-    bad = next((c for c in name if ord(c) < 32 or ord(c) == 127), None)
-    if bad is not None:
-        return f"holds the control character {bad!r} (output files are named after it)"
+    import unicodedata
+
+    bad = next((c for c in name if unicodedata.category(c) in ("Cc", "Cf", "Cs", "Zl", "Zp")), None)
+    if bad is not None:  # (Cf: format characters such as U+202E, which reverses the text shown after it)
+        kind = "control" if unicodedata.category(bad) == "Cc" else "invisible format or separator"
+        return f"holds the {kind} character {bad!r} (U+{ord(bad):04X}; output files are named after it)"
     return None
 
 

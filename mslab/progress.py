@@ -263,4 +263,15 @@ def make_progress(progress: Any, total: int, desc: str, unit: str = "step") -> t
         return Progress(total, desc, unit, enabled=True if progress else None), True
     if progress is False:
         return None, False
+    check_progress(progress)
     return progress, False
+
+
+def check_progress(progress: object) -> None:
+    """Refuse a ``progress`` other than None, True, False or an object with ``update(n)`` (TypeError)."""
+    if progress is None or isinstance(progress, bool) or callable(getattr(progress, "update", None)):
+        return
+    from mslab.checks import shown
+
+    raise TypeError(f"progress must be True, False, None or an object with an update(n) method, "
+                    f"got {type(progress).__name__} {shown(progress)}")

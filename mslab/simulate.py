@@ -24,8 +24,10 @@ import time
 import warnings
 import weakref
 
+from mslab.checks import shown
 from mslab.integrators.base import Integrator
 from mslab.ledger import initial_energy_scale, xs_bytes
+from mslab.progress import check_progress
 from mslab.scene import Scene
 from mslab.simulation import Simulation, SimulationInterrupted
 from mslab.steps import step_count
@@ -98,6 +100,10 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
     SimulationInterrupted
         Ctrl-C (``.trajectory`` keeps the saved part).
     """
+    if not isinstance(scene, Scene):  # before reading its settings
+        hint = f" (a scene name: mslab.load_scene({scene!r}))" if isinstance(scene, str) else ""
+        raise TypeError(f"scene must be an mslab Scene{hint}, got {type(scene).__name__} {shown(scene)}")
+    check_progress(progress)  # cheap checks before the session's set-up
     s = scene.settings
     begun = time.perf_counter()
     sim = Simulation(scene, method, dt, t_end=s.t_end if t_end is None else t_end, save_every=save_every,
@@ -105,7 +111,7 @@ def simulate(scene: Scene, method: str | Integrator | None = None, dt: float | N
                      energy_blowup=energy_blowup, threads=threads, dtype=dtype, _stacklevel=3)
     sim.advance(progress=progress)
     _frame_loop_hint(scene, sim, time.perf_counter() - begun)
-    return sim.trajectory
+    return sim._trajectory(sim._samples.k, True, current=True, handover=True)  # the session is dropped
 
 
 #: a call of at most this many steps is a "short" one; this many alike in a row on one system warn once

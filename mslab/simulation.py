@@ -20,10 +20,10 @@ gets the compiled loop, a five-particle chain the numpy one. Nothing read or adv
 changes it.
 
 **Owned data**: the session steps a private deep copy of the scene (system, effects, initial
-state) and of the method, taken when it starts; :attr:`Simulation.state` and
-:attr:`Simulation.trajectory` are copies. Editing the scene, the method object or anything
-read from the session changes nothing in the run, on either backend. ``advance`` from a
-second thread while one runs is refused (RuntimeError).
+state) and of the method, taken when it starts; it hands them out read-only (:mod:`mslab.owned`),
+:attr:`Simulation.state` and :attr:`Simulation.stats` as copies. Editing the scene, the method
+object or anything read from the session changes nothing in the run, on either backend.
+``advance`` from a second thread while one runs is refused (RuntimeError).
 """
 
 from __future__ import annotations
@@ -39,13 +39,15 @@ import numpy as np
 from mslab import fast, jit, stopping
 from mslab.checks import flag, real, whole
 from mslab.errors import ConvergenceError, InstabilityError, StepFailure
+from mslab.initial import check_initial_state
 from mslab.integrators.base import Integrator, get_method
 from mslab.ledger import NEVER, Samples, initial_energy_scale
+from mslab.owned import read_only, read_only_arrays, samples_trajectory
 from mslab.state import State
 from mslab.stepping import CompiledLoop, LedgerOver, NumpyLoop, interpolate_marks
-from mslab.steps import check_dt, step_count
+from mslab.steps import check_dt, step_count, steps_to_take
 from mslab.stopping import LedgerCheck, hint, position_limit
-from mslab.trajectory import Energy, Stats, Trajectory
+from mslab.trajectory import Stats, Trajectory
 
 if TYPE_CHECKING:
     from mslab.scene import Scene
@@ -84,12 +86,9 @@ class Simulation:
     blowup, energy_blowup, stable_dt, check_stability, backend, threads, dtype
         As in :func:`mslab.simulate`.
 
-    Attributes
-    ----------
-    step : int
-        Steps taken.
-    stats : Stats
-        Cumulative work and stepping time of the session.
+    Everything read from a session leaves the run as it is (:mod:`mslab.owned`): its settings,
+    ``system`` and ``integrator`` are read-only attributes whose arrays are read-only, ``stats``
+    and ``state`` are copies, ``trajectory`` copies or read-only views.
     """
 
     def __init__(self, scene: Scene, method: str | Integrator | None = None, dt: float | None = None, *,
@@ -101,38 +100,35 @@ class Simulation:
 
         if not isinstance(scene, Scene):
             raise TypeError(f"scene must be an mslab Scene, got {type(scene).__name__}")
+        check_initial_state(scene)  # cheap, before the copy and any set-up
         s = scene.settings
         if backend is not None and not isinstance(backend, str):
             raise TypeError(f"backend must be a string or None, got {type(backend).__name__}")
-        self.backend = fast.check_backend(backend)
-        self.dtype = fast.check_dtype(dtype, self.backend)  # float32: the compiled loop only
-        self.threads = jit.thread_count(None if threads is None else whole("threads", threads, 1))
-        self.scene = scene  # the user's: the run steps its own copy (editing the scene changes nothing)
+        self._backend = fast.check_backend(backend)
+        self._dtype = fast.check_dtype(dtype, self.backend)  # float32: the compiled loop only
+        self._threads = jit.thread_count(None if threads is None else whole("threads", threads, 1))
+        self._user_scene = scene  # the user's: the run steps its own copy (editing the scene changes nothing)
         own = own_copy(scene)
-        self._scene, self.system = own, own.system
+        self._scene, self._system = own, own.system
         if method is not None and not isinstance(method, (str, Integrator)):
             raise TypeError(f"method must be a method name or an Integrator, got {type(method).__name__}")
-        self.integrator = copy.deepcopy(get_method(method if method is not None else s.method))
-        self.dt = check_dt(s.dt if dt is None else dt)
-        self.end = None if t_end is None else step_count(t_end, self.dt)
+        self._integrator = copy.deepcopy(get_method(method if method is not None else s.method))
+        self._dt = check_dt(s.dt if dt is None else dt)
+        self._end = None if t_end is None else step_count(t_end, self.dt)
         if save_every is None:  # open-ended: only the first state (hours of frames fill no memory)
             save_every = s.save_every if self.end is not None else NEVER
-        self.save_every = whole("save_every", save_every, 1)
+        self._save_every = whole("save_every", save_every, 1)
         blowup = real("blowup", blowup, positive=True, allow_inf=True)
         energy_blowup = real("energy_blowup", energy_blowup, positive=True, allow_inf=True)
         stable_dt = None if stable_dt is None else real("stable_dt", stable_dt, minimum=0.0)  # 0: none
         check_stability = flag("check_stability", check_stability)
         state0 = own.state0
-        for what, values in (("positions", state0.x), ("velocities", state0.v)):
-            if not np.all(np.isfinite(values)):  # before any work: a run from NaN "blows up" at step 1
-                raise ValueError(f"initial state: {what} are not finite (NaN or inf) at particles "
-                                 f"{np.flatnonzero(~np.all(np.isfinite(values), axis=-1))[:5].tolist()}")
-        self.blowup = blowup
-        self.stable_dt = stable_dt
+        self._blowup = blowup
+        self._stable_dt = stable_dt
         if check_stability and self.integrator.explicit:
-            self.stable_dt = stopping.check_stability(scene, self.integrator, self.dt, stable_dt,
+            self._stable_dt = stopping.check_stability(scene, self.integrator, self.dt, stable_dt,
                                                       stacklevel=_stacklevel + 1)
-        self.stats = Stats(method=self.integrator.name, dt=self.dt)
+        self._stats = Stats(method=self.integrator.name, dt=self.dt)
         self._samples = Samples(self.system, state0.x.shape, self.save_every, self.end)
         beyond = stopping.beyond_limit(own, self.integrator, self.dt, self.stable_dt)
         self._check = LedgerCheck(initial_energy_scale(own), energy_blowup, self.integrator.n_stages,
@@ -142,8 +138,27 @@ class Simulation:
         self._failed: Exception | None = None
         self._running = threading.Lock()
         self._begin()  # the backend and the method's start: fixed when the session starts
+        mine = [] if own.system is scene.system else [own.system, *own.system.effects]  # (replaced forces)
+        read_only_arrays(self._integrator, *mine)  # after the compiled loop took its parameters
 
-    # -- what the session is at ---------------------------------------------------------------
+    # -- what the session is at (read-only: fixed when it starts) ------------------------------
+    scene = read_only("user_scene", "The scene the session started from (the user's; the run steps a copy).")
+    system = read_only("system", "The session's own copy of the system (its public arrays read-only).")
+    integrator = read_only("integrator", "The session's own copy of the method (its arrays read-only).")
+    dt = read_only("dt", "The step.")
+    end = read_only("end", "The declared length in steps (None: open-ended).")
+    save_every = read_only("save_every", "Every how many steps a state is saved.")
+    backend = read_only("backend", "The backend asked for (``compiled`` says which loop steps).")
+    dtype = read_only("dtype", "The precision of the stepping loop.")
+    threads = read_only("threads", "Threads of the compiled loops.")
+    blowup = read_only("blowup", "Positions beyond this many times the scene's size are a blow-up.")
+    stable_dt = read_only("stable_dt", "The predicted stable step quoted in errors (None: unknown).")
+
+    @property
+    def stats(self) -> Stats:
+        """A copy of the session's cumulative work and stepping time (editing it changes nothing)."""
+        return replace(self._stats)
+
     @property
     def step(self) -> int:
         """Steps taken so far."""
@@ -173,6 +188,14 @@ class Simulation:
             return self._failed.trajectory
         return self._trajectory(self._samples.k, True, current=True)
 
+    def __repr__(self) -> str:
+        """Return a one-line summary (scene, method, dt, steps, loop), never the arrays."""
+        end = self.end
+        length = f"{self.step} of {end} steps" if end is not None else f"{self.step} steps, open-ended"
+        stopped = ", stopped" if self._failed is not None else ""
+        return (f"Simulation({self._scene.name!r}: {self.integrator.name} dt={self.dt:g}, {length}, "
+                f"{'compiled' if self.compiled else 'numpy'} loop{stopped})")
+
     # -- stepping ------------------------------------------------------------------------------
     def advance(self, n: int | None = None, *, t: float | None = None, progress: object = False) -> None:
         """Take ``n`` more steps (or ``t`` more seconds, a whole number of steps; neither: to ``t_end``).
@@ -194,7 +217,7 @@ class Simulation:
     def _advance_locked(self, n: int | None, t: float | None, progress: object) -> None:
         if self._failed is not None:
             raise ValueError(f"the session stopped at step {self.step}: {self._failed}")
-        count = self._count(n, t)
+        count = steps_to_take(n, t, self.dt, self.step, self.end)
         if self.end is not None and self.step + count > self.end:
             raise ValueError(f"the session ends at step {self.end} (t_end); {count} more steps from "
                              f"step {self.step} go beyond")
@@ -206,17 +229,6 @@ class Simulation:
         else:
             with jit.threads(self.threads):
                 self._advance(count, progress)
-
-    def _count(self, n: int | None, t: float | None) -> int:
-        if n is not None and t is not None:
-            raise ValueError("advance takes a number of steps or a time t, not both")
-        if t is not None:  # t = 0 is 0 steps, as n = 0 is
-            return 0 if real("t", t, minimum=0.0) == 0.0 else step_count(t, self.dt)
-        if n is None:
-            if self.end is None:
-                raise ValueError("advance needs a number of steps or a time t (the session has no t_end)")
-            return self.end - self.step
-        return whole("n", n, 0)
 
     def _begin(self) -> None:
         """Choose the loop (``auto``: from the declared length, else :data:`HORIZON`) and start the method."""
@@ -295,7 +307,7 @@ class Simulation:
 
     def _totals(self) -> tuple:
         """Return the session's stepping time and counters so far (a sample's mark)."""
-        return self.stats.wall_time, {k: getattr(self.stats, k) for k in self.system.counters.snapshot()}
+        return self._stats.wall_time, {k: getattr(self._stats, k) for k in self.system.counters.snapshot()}
 
     def _over(self, first: int, before_step: int | None = None) -> int | None:
         """Return the first sample from ``first`` (before step ``before_step``) whose ledger gained too much.
@@ -327,9 +339,9 @@ class Simulation:
         check = self._check
         scale = check.scale if check.scale > 0 else energy.energy_scale()
         step = int(samples.steps[j])
-        self.stats.wall_time, counted = samples.marks[j]
+        self._stats.wall_time, counted = samples.marks[j]
         for key, value in counted.items():
-            setattr(self.stats, key, value)
+            setattr(self._stats, key, value)
         growth = (energy.total[j] - energy.total[0]) / scale
         ledger = "K + U + D - W_ext" if self.system.driving else "K + U + D"
         return self._stop(InstabilityError, f"blew up by step {step}", f"the state stayed finite but the "
@@ -348,7 +360,7 @@ class Simulation:
 
     def _account(self, before: dict, start: float, bar: object = None) -> None:
         """Add the work counted since ``before`` and the time since ``start`` to :attr:`stats`."""
-        stats = self.stats
+        stats = self._stats
         stats.wall_time += time.perf_counter() - start
         stats.steps = self.step
         for key, value in self.system.counters.since(before).items():
@@ -363,7 +375,7 @@ class Simulation:
         The trajectory keeps the samples before ``step`` (or the first ``keep``).
         """
         step = self.step if step is None else step
-        stats = self.stats
+        stats = self._stats
         stats.steps = step
         name, dt = self.integrator.name, self.dt
         if keep is None:
@@ -373,25 +385,11 @@ class Simulation:
         self._failed = err
         return err
 
-    def _trajectory(self, k: int, complete: bool, current: bool = False) -> Trajectory:
-        """Return samples ``[0, k)`` (and the current state when ``current`` and it is not saved)."""
-        samples, loop = self._samples, self._loop
-        stats = replace(self.stats)
-        t = samples.steps[:k] * self.dt
-        if current and samples.steps[k - 1] != loop.step:
-            x, v = loop.x, loop.v
-            point = samples.point(x, v, loop.dissipated)
-            energy = samples.energy(k, copy=False)
-            parts = [np.append(p, q) for p, q in zip(
-                (energy.kinetic, energy.potential, energy.dissipated, energy.external), point, strict=True)]
-            return Trajectory(np.append(t, loop.step * self.dt), np.concatenate((samples.x[:k], x[None])),
-                              np.concatenate((samples.v[:k], v[None])), Energy(*parts), stats, complete,
-                              self._scene.name)
-        if k == samples.steps.size:  # the whole declared run: hand the arrays over (memory budget: 1 x)
-            return Trajectory(t, samples.x, samples.v, samples.energy(k, copy=False), stats, complete,
-                              self._scene.name)
-        return Trajectory(t, samples.x[:k].copy(), samples.v[:k].copy(), samples.energy(k, copy=True), stats,
-                          complete, self._scene.name)
+    def _trajectory(self, k: int, complete: bool, current: bool = False,
+                    handover: bool = False) -> Trajectory:
+        """Return samples ``[0, k)`` and the current state when ``current`` (:func:`samples_trajectory`)."""
+        return samples_trajectory(self._samples, self._loop, replace(self._stats), self.dt, self._scene.name,
+                                  k, complete, current, handover)
 
 
 class _LedgerGrew(Exception):

@@ -44,6 +44,14 @@ class State:
         """Number of space dimensions."""
         return self.x.shape[1]
 
+    def __repr__(self) -> str:
+        """Return a one-line summary (sizes, memory, dissipated work), never the arrays."""
+        shape = "x".join(str(d) for d in np.shape(self.x))
+        memory = f", memory of {len(self.memory)} arrays" if self.memory else ""
+        work = self.dissipated
+        shown = f"{work:.6g}" if isinstance(work, float | int | np.floating) else type(work).__name__
+        return f"State(x and v: {shape}{memory}, dissipated={shown})"
+
     def is_finite(self) -> bool:
         """Return True when every position and velocity is a finite number."""
         return bool(np.isfinite(self.x).all() and np.isfinite(self.v).all())

@@ -40,6 +40,12 @@ class Energy:
         if self.external is None:
             self.external = np.zeros(np.shape(self.kinetic))
 
+    def __repr__(self) -> str:
+        """Return a one-line summary (samples, first and last total), never the arrays."""
+        n = len(self.kinetic)
+        ends = f"; total {self.total[0]:.6g} .. {self.total[-1]:.6g}" if n else ""
+        return f"Energy({n} samples of K, U, D, W_ext{ends})"
+
     @property
     def total(self) -> np.ndarray:
         """``K + U + D - W_ext``: constant for the exact solution, damped, driven or not."""

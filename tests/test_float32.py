@@ -77,7 +77,7 @@ def test_float32_is_refused_where_there_is_no_float32_loop(monkeypatch):
         mslab.simulate(chain, "implicit_euler", dt=1e-2, t_end=0.1, dtype="float32")
     with pytest.raises(ValueError, match="dtype 'float32'.*no compiled stepping loop"):
         mslab.simulate(chain, "fast_mass_spring", dt=1e-2, t_end=0.1, dtype="float32")
-    system = System(chain.system.mass, chain.system.pinned, chain.system.effects + (_Kick(),), 3)
+    system = System(chain.system.mass, chain.system.pinned, chain.system.effects + (_Kick(),), chain.dim)
     with pytest.raises(ValueError, match=r"dtype 'float32'.*\['kick'\] have no compiled kernel"):
         mslab.simulate(dataclasses.replace(chain, system=system), "rk4", dt=1e-2, t_end=0.1, dtype="float32")
     for bad in ("float16", "double32", 3, True):

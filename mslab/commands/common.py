@@ -148,6 +148,8 @@ def _option(parse: Callable[[str], Any], check: Callable[[Any], Any], what: str)
 
     def read(word: str) -> Any:
         try:
+            if "_" in word:  # Python's 1_000: no number a user types on a command line
+                raise ValueError(word)
             value = parse(word)
         except ValueError:
             raise argparse.ArgumentTypeError(f"must be a {what}, got {shown(word)}") from None

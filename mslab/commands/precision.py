@@ -6,9 +6,11 @@ runs; scipy's ``solve_ivp`` (RK45, DOP853, Radau, BDF) runs over a tolerance swe
 same forces. Prints a table and the fitted orders; ``--out DIR`` writes the figures
 (error vs wall time, error vs force evaluations, error vs dt) and ``precision.json``.
 
-``--jobs N`` runs the error runs in N processes; the timing runs always run one at a
-time in the main process afterwards, so no timing shares the machine with the sweep's
-other runs (other programs on the machine still count: for clean timings keep it idle).
+``--jobs N`` runs the error runs in N processes, at most as many as the CPUs this process may
+use (a larger N is capped to that count, as :func:`mslab.precision.work_precision` does); the
+timing runs always run one at a time in the main process afterwards, so no timing shares the
+machine with the sweep's other runs (other programs on the machine still count: for clean
+timings keep it idle).
 
 Ctrl-C keeps the methods already finished (every run's error and, with timing, its wall
 time; one at a time when serial): they are printed, written with ``--out`` and named in the
@@ -64,7 +66,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--budget", type=number(minimum=0), default=1.0,
                    help="seconds of timed runs per record before stopping early (default 1)")
     p.add_argument("--jobs", type=count(1), default=1,
-                   help="processes for the error runs; timings stay serial (default 1)")
+                   help="processes for the error runs, at most the CPU count (a larger N is capped "
+                        "to it); timings stay serial (default 1)")
     add_common_options(p)
     p.set_defaults(func=run)
 
@@ -96,13 +99,16 @@ def run(args: argparse.Namespace) -> int:
         if s not in ("RK45", "RK23", "DOP853", "Radau", "BDF", "LSODA"):
             raise CommandError(f"unknown solve_ivp method '{s}'; valid: RK45 RK23 DOP853 Radau BDF LSODA",
                                key="--scipy")
+    from mslab.precision.runs import usable_cpus
     from mslab.precision.work_precision import PrecisionInterrupted
+
+    jobs = min(args.jobs, usable_cpus())  # --jobs above the CPU count: capped to it
 
     try:
         records, stopped = precision.work_precision(
             scene, methods, dts, t_end, scipy_methods=scipy_methods,
             rtols=args.rtols or precision.SCIPY_RTOLS, timing=not args.no_timing, repeats=args.repeats,
-            budget=args.budget, jobs=args.jobs, progress=None), None
+            budget=args.budget, jobs=jobs, progress=None), None
     except PrecisionInterrupted as stop:  # Ctrl-C: the methods already finished are kept (and written)
         records, stopped = stop.records, stop
         methods = [m for m in methods if m in stop.methods]
@@ -111,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
     figures = _figures(args, records, orders, expected)
     doc = {"scene": scene.name, "t_end": t_end, "dts": dts, "reference": records[0]["reference"]
            if records else None, "records": records, "orders": orders, "expected_orders": expected,
-           "figures": figures, "jobs": args.jobs}
+           "figures": figures, "jobs": jobs}
     folder = out_dir(args)
     if folder is not None:
         write_json(folder / "precision.json", doc)

@@ -175,6 +175,13 @@ def _describe(bar: Any, text: str) -> None:
         bar.describe(text)
 
 
+def usable_cpus() -> int:
+    """Return how many CPUs this process may run on (its affinity where the system tells it)."""
+    import os
+
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
 def _run_tasks(tasks: list, jobs: int, bar: Any) -> list[dict]:
     """Run error tasks serially or in a process pool (same order as ``tasks``)."""
     results: list = [None] * len(tasks)

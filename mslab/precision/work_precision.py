@@ -18,6 +18,7 @@ from mslab.precision.runs import (
     _run_tasks,
     _time_mslab,
     _time_scipy,
+    usable_cpus,
 )
 from mslab.scenes.builder import Scene
 from mslab.simulate import step_count
@@ -60,7 +61,8 @@ def work_precision(scene: Scene, methods: Sequence[str | Integrator],
     n_save : int
         About this many saved times enter ``error_rms``.
     jobs : int
-        Processes for the error runs (timing runs stay serial; see the module notes).
+        Processes for the error runs, at most the CPUs this process may use (a larger number is
+        capped to that count); timing runs stay serial (see the module notes).
     backend : {"auto", "numba", "numpy"}, optional
         Backend of the runs (None: ``$MSLAB_BACKEND`` or ``"auto"``). ``"auto"`` is decided
         once for the whole sweep (:func:`mslab.fast.job.job_backends`): when all its runs
@@ -132,6 +134,7 @@ def _sweep(scene: Scene, tasks: list, ref: Reference, t_end: float, atol: float 
         groups.setdefault(name if kind == "mslab" else f"scipy:{name}", []).append(i)
     records: list[dict] = []
     finished: list[str] = []
+    jobs = min(jobs, usable_cpus())  # more processes than CPUs only share them (and fill the memory)
     try:
         runs = _run_tasks(tasks, jobs, bar) if jobs > 1 else None
         for label, indices in groups.items():

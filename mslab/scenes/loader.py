@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mslab.checks import whole
 from mslab.errors import SceneError
 from mslab.scene import Scene, Settings
 from mslab.scenes.settings import RUN_KEYS, check_settings
@@ -106,6 +107,8 @@ def load_scene(name_or_path: str | Path, *, max_bytes: int | None = None, **over
         The file is missing, not valid TOML or not a valid scene; the message names the
         file, the key and the reason.
     """
+    if max_bytes is not None:
+        max_bytes = whole("max_bytes", max_bytes, 1)
     path = scene_path(name_or_path)
     source = str(path) if path.parent != SCENE_DIR else path.name
     doc = read_scene_file(path, source)
@@ -125,4 +128,5 @@ def load_scene(name_or_path: str | Path, *, max_bytes: int | None = None, **over
 
         check_settings(given, source, dt=file_value("dt", Settings.dt),
                        t_end=file_value("t_end", Settings.t_end), note=" (given as an override)")
+        given.update({k: float(given[k]) for k in ("dt", "t_end") if k in given})  # not a numpy float
     return scene_from_doc(doc, source, default_name=path.stem, overrides=given, max_bytes=max_bytes)

@@ -6,6 +6,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from mslab.checks import shown
 from mslab.effects.schema import check_keys, integer, number, string
 from mslab.errors import SceneError
 
@@ -56,8 +57,8 @@ def check_settings(settings: Mapping, source: str | None = None, *, dt: float | 
         if key in settings:
             value = settings[key]
             number = isinstance(value, int | float) and not isinstance(value, bool)
-            if not number or not np.isfinite(value) or value <= 0:
-                fail(f"run.{key}", f"must be a finite number > 0, got {value!r}")
+            if not number or not np.isfinite(float(value) if abs(value) < 1e308 else np.inf) or value <= 0:
+                fail(f"run.{key}", f"must be a finite number > 0, got {shown(value)}")
     if "save_every" in settings:
         value = settings["save_every"]
         if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:

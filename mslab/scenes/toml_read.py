@@ -8,6 +8,9 @@ from pathlib import Path
 
 from mslab.errors import SceneError
 
+#: largest scene file read, checked before reading (100,000 particles' positions and springs
+#: listed take about 7 MB; larger arrangements come from generators)
+MAX_FILE_BYTES = 8 * 2**20
 #: deepest nesting of arrays and tables a scene file may use (a scene needs 3: [[x, y], ...])
 MAX_DEPTH = 16
 
@@ -95,7 +98,16 @@ def _deepest(doc: dict) -> str | None:
 def read_scene_file(path: Path, source: str) -> dict:
     """Return the tables of a scene file (``source``: how messages name the file)."""
     try:
-        text = path.read_text(encoding="utf-8")
+        size = path.stat().st_size  # the cheap check first: parsing 47 MB takes minutes
+        if size > MAX_FILE_BYTES:
+            raise SceneError("file", f"{size / 2**20:.3g} MiB, more than the {MAX_FILE_BYTES // 2**20} MiB a "
+                             f"scene file may have (checked before reading it); make large arrangements "
+                             f"with a generator: [particles] generator = \"grid\" (docs/scenes.md)", source)
+        with path.open(encoding="utf-8") as file:  # text mode, as read_text: newlines translated
+            text = file.read(MAX_FILE_BYTES + 1)  # (a file grown since its size was read: cut, refused)
+        if len(text) > MAX_FILE_BYTES:
+            raise SceneError("file", f"more than the {MAX_FILE_BYTES // 2**20} MiB a scene file may have",
+                             source)
     except UnicodeDecodeError as err:
         raise SceneError("file", f"not UTF-8 text ({err.reason})", source) from None
     except OSError as err:
