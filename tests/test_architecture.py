@@ -31,14 +31,15 @@ PACKAGE = ROOT / "mslab"
 #: the layers, top (imports everything below) to bottom (imports nothing of mslab): each a
 #: list of path patterns relative to mslab/ (``fnmatch`` style; a folder ``x/`` means every file in it)
 LAYERS: list[tuple[str, tuple[str, ...]]] = [
-    ("commands/, cli, demo, lesson_mistakes",
-     ("__init__.py", "__main__.py", "cli.py", "demo.py", "lesson_mistakes.py", "commands/")),
+    ("commands/, cli, demo, lesson_mistakes, claims_order",
+     ("__init__.py", "__main__.py", "cli.py", "demo.py", "lesson_mistakes.py", "claims_order.py",
+      "commands/")),
     ("plots/", ("plots/",)),
     ("stability/, derive/, precision/, budget", ("stability/", "derive/", "precision/", "budget.py")),
     ("scenes/ (builder, loader, generators)", ("scenes/",)),
     ("simulate (Simulation, simulate, ledger, stopping)",
      ("simulate.py", "simulation.py", "stepping.py", "steps.py", "stopping.py", "ledger.py",
-      "trajectory.py")),
+      "trajectory.py", "initial.py", "owned.py")),
     ("fast/", ("fast/",)),
     ("integrators/ (families, catalogue, newton)", ("integrators/",)),
     ("Scene, Settings, schema", ("scene.py",)),
