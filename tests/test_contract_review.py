@@ -251,3 +251,34 @@ def test_a_scene_name_with_an_invisible_character_is_refused(char):
     with pytest.raises(ValueError, match="scene name"):
         file_stem(f"a{char}b")
     assert name_problem("my scene: é") is None
+
+
+@pytest.mark.parametrize("call, error, words", [
+    (lambda b: b.add_particle(["3", "4"]), TypeError, "position must be real numbers"),
+    (lambda b: b.add_particle([0.0, 0.0], pinned="no"), TypeError, "pinned must be True or False"),
+    (lambda b: b.add_particle(np.array([1 + 2j, 0])), TypeError, "position must be real numbers"),
+    (lambda b: b.add_particle([0.0, 0.0], mass=True), TypeError, "mass must be a number"),
+    (lambda b: b.add_particle([True, False]), TypeError, "position must be real numbers"),
+    (lambda b: b.add_particle([0.0, 0.0], mass="1"), TypeError, "mass must be a number"),
+    (lambda b: b.add_particle([0.0, 0.0], mass=1j), TypeError, "mass must be a number"),
+    (lambda b: b.add_particle([10**400, 0]), ValueError, "position: must be finite numbers"),
+    (lambda b: b.add_particle([0.0, 0.0], velocity=["1", "0"]), TypeError, "velocity must be real numbers"),
+    (lambda b: b.add_particles([[0.0, 0.0], [1.0, 1.0]], mass=["a", "b"]), TypeError, "mass must be real"),
+    (lambda b: mslab.SceneBuilder(dim=True), TypeError, "dim must be a whole number"),
+    (lambda b: mslab.SceneBuilder(dim=2.0), TypeError, "dim must be a whole number"),
+])
+def test_the_scene_builder_converts_nothing_silently(call, error, words):
+    """Text, bools and complex numbers were converted without a word (pinned="no" pinned a particle,
+    1+2j lost its imaginary part): each is refused in one error naming the argument, as the file
+    loader refuses them."""
+    b = mslab.SceneBuilder(dim=2)
+    with pytest.raises(error, match=words):
+        call(b)
+    b.add_particle([0.0, 0.0])                 # nothing of the refused call was added
+    assert b.build().state0.x.shape == (1, 2)
+
+
+def test_the_scene_builder_takes_numpy_numbers():
+    b = mslab.SceneBuilder(dim=2)
+    assert b.add_particle(np.zeros(2, dtype=np.float32), mass=np.float64(2.0), pinned=np.bool_(True)) == 0
+    assert list(b.add_particles(np.ones((3, 2), dtype=np.int64), mass=np.arange(1, 4))) == [1, 2, 3]

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from mslab.checks import flag, real, shown, whole
 from mslab.effects import Anchors, Damping, Gravity, Plane, Sphere, Springs, Wind, registry
 from mslab.effects.base import BuildContext, Effect
 from mslab.effects.schema import check_values, describe
@@ -65,6 +66,22 @@ class _Rows:
         return out
 
 
+def _numbers(value: npt.ArrayLike, key: str) -> np.ndarray:
+    """Return ``value`` as a float array: real numbers only (no text, bools or complex numbers)."""
+    raw = np.asarray(value)
+    if raw.dtype.kind == "O":                    # Python ints beyond any float, or mixed objects
+        if not all(isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+                   for v in raw.reshape(-1)):
+            raise TypeError(f"{key} must be real numbers, got {shown(value)}")
+        try:
+            return raw.astype(float)
+        except OverflowError:
+            raise SceneError(key, "must be finite numbers") from None
+    if raw.dtype.kind not in "iuf":
+        raise TypeError(f"{key} must be real numbers, got {raw.dtype.name} values {shown(value)}")
+    return raw.astype(float)
+
+
 class SceneBuilder:
     """Collects particles, springs and effects; ``build()`` returns a :class:`Scene`.
 
@@ -79,7 +96,7 @@ class SceneBuilder:
     """
 
     def __init__(self, dim: int = 2):
-        if dim not in (1, 2, 3):
+        if whole("dim", dim) not in (1, 2, 3):
             raise SceneError("dim", f"must be 1, 2 or 3, got {dim!r}")
         self.dim = dim
         self._x = _Rows((dim,), float)
@@ -91,7 +108,7 @@ class SceneBuilder:
 
     # -- particles ----------------------------------------------------------------
     def _vector(self, value: npt.ArrayLike, key: str) -> np.ndarray:
-        arr = np.asarray(value, dtype=float).reshape(-1)
+        arr = _numbers(value, key).reshape(-1)
         if arr.shape != (self.dim,):
             raise SceneError(key, f"expected {self.dim} coordinates, got {arr.size}")
         if not np.all(np.isfinite(arr)):
@@ -101,7 +118,7 @@ class SceneBuilder:
     def _checked(self, position: npt.ArrayLike, mass: float,
                  velocity: npt.ArrayLike | None) -> tuple[np.ndarray, np.ndarray | float]:
         """Return the checked position and velocity (0.0 for none) of a particle, or raise SceneError."""
-        if not np.isfinite(mass) or mass <= 0:
+        if not np.isfinite(real("mass", mass, allow_inf=True)) or mass <= 0:
             raise SceneError("mass", f"must be > 0, got {mass!r}")
         x = self._vector(position, "position")
         return x, 0.0 if velocity is None else self._vector(velocity, "velocity")
@@ -110,19 +127,20 @@ class SceneBuilder:
                      velocity: npt.ArrayLike | None = None) -> int:
         """Add one mass point; return its index."""
         x, vel = self._checked(position, mass, velocity)
+        flag("pinned", pinned)
         self._x.append(x)
         self._v.append(0.0 if pinned else vel)
         self._m.append(float(mass))
-        self._pinned.append(bool(pinned))
+        self._pinned.append(flag("pinned", pinned))
         return self._x.n - 1
 
     def add_particles(self, positions: npt.ArrayLike, mass: npt.ArrayLike = 1.0,
                       velocity: npt.ArrayLike | None = None) -> np.ndarray:
         """Add many particles at once; return their indices (ndarray)."""
-        pos = np.asarray(positions, dtype=float).reshape(-1, self.dim)
-        masses = np.broadcast_to(np.asarray(mass, dtype=float), (pos.shape[0],))
-        vel = np.zeros_like(pos) if velocity is None else np.broadcast_to(
-            np.asarray(velocity, dtype=float), pos.shape)
+        pos = _numbers(positions, "positions").reshape(-1, self.dim)
+        masses = np.broadcast_to(_numbers(mass, "mass"), (pos.shape[0],))
+        vel = np.zeros_like(pos) if velocity is None else np.broadcast_to(_numbers(velocity, "velocity"),
+                                                                          pos.shape)
         if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(vel)) and np.all(np.isfinite(masses))
                 and np.all(masses > 0)):  # one by one, so that the first mistake is named
             for p, m, w in zip(pos, masses, vel, strict=True):
