@@ -122,10 +122,10 @@ MISTAKES: list[Mistake] = [
 
     _m("03 Heun and midpoint swapped", E03, M03,
        "\n_a, _b = heun_step, midpoint_step\nheun_step, midpoint_step = _b, _a\n",
-       {"P:test_heun_on_a_swinging_spring_by_hand", "P:test_heun_matches_the_library",
+       {"P:test_heun_on_a_swinging_spring", "P:test_heun_matches_the_library",
         "P:test_midpoint_matches_the_library", "H:test_both_in_3d_with_velocities",
         "H:test_both_on_a_chain_drawn_at_grading"},
-       {"P:test_heun_on_a_swinging_spring_by_hand": "midpoint method's step",
+       {"P:test_heun_on_a_swinging_spring": "midpoint method's step",
         "P:test_heun_matches_the_library": "midpoint method's step",
         "P:test_midpoint_matches_the_library": "Heun's step"}),
     _m("03 midpoint slope with the old velocity", E03, M03,
@@ -146,10 +146,10 @@ MISTAKES: list[Mistake] = [
        "\ndef heun_step(x, v, accel, dt):\n    a = accel(x, v)\n"
        "    x_p, v_p = x + dt * v, v + dt * a\n"
        "    return x + dt * v_p, v + dt * accel(x_p, v_p)\n",
-       {"P:test_heun_on_a_swinging_spring_by_hand", "P:test_heun_matches_the_library",
+       {"P:test_heun_on_a_swinging_spring", "P:test_heun_matches_the_library",
         "H:test_heun_is_second_order", "H:test_both_in_3d_with_velocities",
         "H:test_both_on_a_chain_drawn_at_grading"},
-       {"P:test_heun_on_a_swinging_spring_by_hand": "only the slope at the predicted end",
+       {"P:test_heun_on_a_swinging_spring": "only the slope at the predicted end",
         "P:test_heun_matches_the_library": "only the slope at the predicted end"}),
 
     _m("04 RK4 weights misordered", E04, M04,

@@ -11,6 +11,9 @@ test lies anywhere under the lab's root.
 
 from __future__ import annotations
 
+import ast
+import importlib.util
+import json
 import os
 import re
 import shlex
@@ -21,8 +24,11 @@ from collections import Counter
 from pathlib import Path
 
 import nbformat
+import numpy as np
 import pytest
 
+from mslab.grading.expected import FILE as EXPECTED_FILE
+from mslab.grading.expected import Expected
 from mslab.grading.layout import BEGIN, HIDDEN
 from mslab.grading.release import solution_lines, strip_solutions
 
@@ -96,3 +102,55 @@ def test_lab_root_holds_no_answer_key(lab_root: Path) -> None:
         if path.suffix == ".py":
             assert BEGIN not in path.read_text(), path
     assert not (lab_root / "exercises").exists()
+
+
+#: what a released public test may import from mslab: the library's public API (open: the course's
+#: workbench, which a graded file cannot import) and the grading helpers that compare, build the
+#: trusted acceleration and read the stored answers. Never an instructor-side key.
+PUBLIC_IMPORTS = {"mslab", "mslab.derive", "mslab.effects.colliders", "mslab.effects.springs",
+                  "mslab.integrators", "mslab.scenes", "mslab.stability", "mslab.state",
+                  "mslab.grading.checks", "mslab.grading.expected", "mslab.grading.problems"}
+
+
+def _mslab_imports(source: str) -> set[str]:
+    out = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.ImportFrom) and node.module and node.module.split(".")[0] == "mslab":
+            out |= {node.module} if node.module != "mslab.grading" else {f"mslab.grading.{a.name}"
+                                                                          for a in node.names}
+        elif isinstance(node, ast.Import):
+            out |= {a.name for a in node.names if a.name.split(".")[0] == "mslab"}
+    return out
+
+
+def test_released_public_tests_compute_no_answer_in_the_exercise_form(lab_root: Path) -> None:
+    """Issue 36 D1: the mistakes' answers and hand-made references come as numbers from expected.json."""
+    tests = sorted((lab_root / "student").glob("*/test_public.py"))
+    assert len(tests) == len(list((ROOT / "exercises").glob("*/test_public.py"))), tests
+    for test in tests:
+        imports = _mslab_imports(test.read_text())
+        assert imports <= PUBLIC_IMPORTS, f"{test.parent.name}: imports {sorted(imports - PUBLIC_IMPORTS)}"
+        if "mslab.grading.expected" in imports:
+            data = json.loads((test.parent / EXPECTED_FILE).read_text())  # plain JSON, numbers only
+            for name in data:
+                right, wrong = Expected(test).arrays(name)
+                assert all(np.all(np.isfinite(a)) for a in (*right, *(w for v in wrong.values() for w in v)))
+    assert importlib.util.find_spec("mslab.grading.mistakes") is None  # the old key, gone from the package
+
+
+def test_the_stored_answers_are_what_the_instructor_keys_compute(capsys) -> None:
+    """Each exercises/NN/expected.json reproduces from tools/exercise_keys (within round-off)."""
+    path = ROOT / "tools" / "exercise_expected.py"
+    spec = importlib.util.spec_from_file_location("exercise_expected", path)
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    assert tool.main(["--check"]) == 0, capsys.readouterr().out
+    keyed = {p.stem[2:] for p in (ROOT / "tools" / "exercise_keys").glob("ex*.py")}
+    stored = {p.parent.name[:2] for p in (ROOT / "exercises").glob("*/expected.json")}
+    assert keyed == stored, (keyed, stored)
+    # and the comparison is not vacuous: an answer moved by 1e-6 is reported
+    data = tool.compute(ROOT / "exercises" / "01_spring_force")
+    moved = json.loads(json.dumps(data))
+    hint = next(iter(moved["small_net"]["mistakes"]))
+    moved["small_net"]["mistakes"][hint][0][0][0] += 1e-6
+    assert tool.differences(moved, json.loads(json.dumps(data))) and not tool.differences(data, data)

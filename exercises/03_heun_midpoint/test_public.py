@@ -3,12 +3,13 @@
 import numpy as np
 import pytest
 
-from mslab.grading import mistakes
 from mslab.grading.checks import check_known, check_shape, check_step, reference_run
+from mslab.grading.expected import Expected
 from mslab.grading.problems import problem
 from mslab.state import State
 
 MODULE = "heun_midpoint"
+EXPECTED = Expected(__file__)  # the answers of steps with slopes at the wrong times (expected.json)
 
 
 def pair(out, shape):
@@ -26,8 +27,7 @@ HINTS = {"midpoint": "this is the midpoint method's step: Heun averages the slop
 
 def known(method, other, prob, v0):
     """The steps of common mistakes of ``method``: the other method's, Euler's, slopes at wrong times."""
-    wrong = mistakes.heun_midpoint(method, prob, prob.x0, v0, 0.01)
-    wrong = {hint: State(*out) for hint, out in wrong.items()}
+    wrong = {hint: State(*out) for hint, out in EXPECTED.arrays(f"{method}_moving_chain")[1].items()}
     return {**{HINTS[m]: reference_run(m, prob, prob.x0, v0, 0.01) for m in (other, "euler")}, **wrong}
 
 
@@ -38,21 +38,22 @@ def moving_chain():
     return prob, np.random.default_rng(31).normal(size=prob.x0.shape) * (~prob.pinned)[:, None]
 
 
-@pytest.mark.points(2)
-def test_heun_on_a_swinging_spring_by_hand(student):
-    # eqs. 11-12 of the lecture notes with the trusted acceleration. The spring swings sideways, so the
-    # problem is nonlinear: on a linear one (any oscillator along its axis) Heun and the
-    # midpoint method take exactly the same step and this test could not tell them apart.
+def swinging_spring():
+    """An oscillator swinging sideways: the spring turns, so the problem is nonlinear (on a
+    linear one, any oscillator along its axis, Heun and the midpoint method take exactly the
+    same step and a test could not tell them apart)."""
     prob = problem("oscillator", stiffness=1.0, displacement=0.5, dim=2)
-    x0, v0, h = prob.x0, np.array([[0.0, 0.0], [0.0, 0.8]]), 0.1
-    a0 = prob(x0, v0)
-    x_e, v_e = x0 + h * v0, v0 + h * a0  # the Euler predictor
-    x_heun, v_heun = x0 + h / 2 * (v0 + v_e), v0 + h / 2 * (a0 + prob(x_e, v_e))
-    v_mid = v0 + h * prob(x0 + h / 2 * v0, v0 + h / 2 * a0)
-    assert np.max(np.abs(v_mid - v_heun)) > 1e-6  # the midpoint answer fails this test
+    return prob, prob.x0, np.array([[0.0, 0.0], [0.0, 0.8]]), 0.1
+
+
+@pytest.mark.points(2)
+def test_heun_on_a_swinging_spring(student):
+    prob, x0, v0, h = swinging_spring()
+    heun, midpoint = (reference_run(m, prob, x0, v0, h) for m in ("heun", "midpoint"))
+    assert np.max(np.abs(midpoint.v - heun.v)) > 1e-6  # the midpoint answer fails this test
     x, v = pair(student.heun_step(x0, v0, prob, h), (2, 2))
-    check_known((x, v), (x_heun, v_heun), {HINTS["midpoint"]: (x0 + h * (v0 + h / 2 * a0), v_mid),
-                                           **mistakes.heun_midpoint("heun", prob, x0, v0, h)},
+    check_known((x, v), (heun.x, heun.v), {HINTS["midpoint"]: (midpoint.x, midpoint.v),
+                                           **EXPECTED.arrays("swinging_spring")[1]},
                 whats=("x_new", "v_new"))
 
 

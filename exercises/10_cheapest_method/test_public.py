@@ -1,37 +1,50 @@
 """Public tests of exercise 10 (run them: ``pytest exercises/10_cheapest_method``)."""
 
-import math
-
-import numpy as np
 import pytest
 
 from mslab.grading.checks import as_count, check_scalar
+from mslab.grading.expected import Expected
 
 MODULE = "cheapest_method"
+EXPECTED = Expected(__file__)  # the right answers and the known mistakes' answers, as numbers (expected.json)
+
+DTS = [0.2, 0.1, 0.05, 0.025]
+
+
+def exact_power_law():
+    """Errors e = 0.7 h^2.5 exactly: (dts, errors)."""
+    return DTS, [0.7 * h**2.5 for h in DTS]
+
+
+def noisy_power_law():
+    """Errors e = 3 h, each off by up to 20 %: (dts, errors)."""
+    return DTS, [3.0 * h * (1 + 0.2 * s) for h, s in zip(DTS, (0.5, -1.0, 0.8, -0.3), strict=True)]
+
+
+def one_method():
+    """A method with the error model e = 3 h^2, and the error target 1e-4: (C, p, target)."""
+    return 3.0, 2.0, 1e-4
 
 
 @pytest.mark.points(2)
 def test_fit_recovers_an_exact_and_a_noisy_power_law(student):
-    dts = [0.2, 0.1, 0.05, 0.025]
-    C, p = student.fit_error_model(dts, [0.7 * h**2.5 for h in dts])
+    C, p = student.fit_error_model(*exact_power_law())
     check_scalar(C, 0.7, rtol=1e-9, what="C", mistakes={
-        "log C, not C: the fit's intercept is log C": math.log(0.7), "(C, p) swapped: the slope is p": 2.5})
+        **EXPECTED.scalar("exact_power_law_C")[1], "(C, p) swapped: the slope is p": 2.5})
     check_scalar(p, 2.5, rtol=1e-9, what="p")
-    noisy = [3.0 * h * (1 + 0.2 * s) for h, s in zip(dts, (0.5, -1.0, 0.8, -0.3), strict=True)]
-    slope, log_c = np.polyfit(np.log(dts), np.log(noisy), 1)
-    C, p = student.fit_error_model(dts, noisy)
-    check_scalar(p, slope, rtol=1e-9, what="p (least squares)")
-    check_scalar(C, math.exp(log_c), rtol=1e-9, what="C (least squares)")
+    (p_fit, c_fit), _ = EXPECTED.arrays("noisy_power_law")  # the least-squares fit (p, C)
+    C, p = student.fit_error_model(*noisy_power_law())
+    check_scalar(p, p_fit, rtol=1e-9, what="p (least squares)")
+    check_scalar(C, c_fit, rtol=1e-9, what="C (least squares)")
 
 
 @pytest.mark.points(2)
 def test_step_and_cost_of_one_method(student):
-    h = student.step_for_target(3.0, 2.0, 1e-4)
-    check_scalar(h, math.sqrt(1e-4 / 3.0), rtol=1e-12, what="h", mistakes={
-        "C h^p = target gives h = (target / C)^(1/p)": (1e-4 / 3.0) ** 2,
-        "h = (target / C)^(1/p), not (C / target)^(1/p)": math.sqrt(3.0 / 1e-4)})
+    h = student.step_for_target(*one_method())
+    right, wrong = EXPECTED.scalar("step_for_target")
+    check_scalar(h, right, rtol=1e-12, what="h", mistakes=wrong)
     # t_end / h = 173.2: the run needs 174 steps (173 would be a larger step, more error than asked)
-    n_steps, n_force = student.predicted_cost(math.sqrt(1e-4 / 3.0), 1.0, 4, 1)
+    n_steps, n_force = student.predicted_cost(right, 1.0, 4, 1)
     got = (as_count(n_steps, "n_steps"), as_count(n_force, "n_force"))
     hint = {(173, 693): "t_end / h = 173.2 rounded down: 173 steps are a larger step, take the ceiling",
             (174, 696): "the start-up evaluation is missing: n_steps * evals_per_step + start_evals"}

@@ -4,9 +4,11 @@ import numpy as np
 import pytest
 
 from mslab.grading.checks import as_numbers, check_array, check_known, check_shape
+from mslab.grading.expected import Expected
 from mslab.scenes import grid_springs
 
 MODULE = "cloth_springs"
+EXPECTED = Expected(__file__)  # the sheet's answers and the known mistakes', as numbers (expected.json)
 
 
 def as_set(pairs, n_particles):
@@ -28,17 +30,22 @@ def lengths(x, pairs):
     return np.linalg.norm(x[pairs[:, 0]] - x[pairs[:, 1]], axis=1)
 
 
+def shear_grid():
+    """The sheet of the shear test: (n_rows, n_cols, spacing h, theta)."""
+    return 4, 5, 0.2, np.radians(25.0)
+
+
 @pytest.mark.points(2)
 def test_structural_springs_of_a_3_by_4_grid(student):
     got = as_set(student.grid_springs(3, 4, "structural"), 12)
-    assert len(got) == 2 * 3 * 4 - 3 - 4, f"{len(got)} structural springs, expected 17"
+    assert len(got) == 17, f"{len(got)} structural springs, expected 17"
     assert got == as_set(grid_springs((3, 4), "structural"), 12), "not the neighbours along rows and columns"
 
 
 @pytest.mark.points(2)
 def test_shear_springs_are_both_diagonals_of_every_cell(student):
     got = as_set(student.grid_springs(4, 3, "shear"), 12)
-    assert len(got) == 2 * 3 * 2, f"{len(got)} shear springs, expected 12 (two per cell)"
+    assert len(got) == 12, f"{len(got)} shear springs, expected 12 (two per cell)"
     assert got == as_set(grid_springs((4, 3), "shear"), 12), "not the two diagonals of each cell"
 
 
@@ -46,25 +53,23 @@ def test_shear_springs_are_both_diagonals_of_every_cell(student):
 def test_bend_springs_of_a_4_by_5_grid(student):
     got = as_set(student.grid_springs(4, 5, "bend"), 20)
     expected = as_set(grid_springs((4, 5), "bend"), 20)
-    diagonal = {tuple(sorted((i * 5 + j, (i + 2) * 5 + j + s))) for i in range(2) for j in range(5)
-                for s in (-2, 2) if 0 <= j + s < 5}
+    # the pairs that bend springs laid along the diagonals add, and the hint naming that mistake
+    [(hint, (pairs,))] = EXPECTED.arrays("bend_4_by_5")[1].items()
+    diagonal = {(int(a), int(b)) for a, b in pairs}
     assert got == expected, f"{len(got)} bend springs, expected {len(expected)}" + (
-        ": likely mistake: bend springs skip one particle along rows and columns, not along diagonals"
-        if got - expected and got - expected <= diagonal else "")
+        f": likely mistake: {hint}" if got - expected and got - expected <= diagonal else "")
 
 
 @pytest.mark.points(2)
 def test_the_shear_mode_is_free_for_structural_springs_only(student):
-    n_rows, n_cols, h, theta = 4, 5, 0.2, np.radians(25.0)
+    n_rows, n_cols, h, theta = shear_grid()
     x = as_numbers(student.sheared(n_rows, n_cols, h, theta), what="x")
     check_shape(x, (20, 2), what="x")
-    i, j = np.divmod(np.arange(20), n_cols)
-    check_known((x[:, 1],), (i * h * np.cos(theta),), whats=("y",), mistakes={
-        "cos and sin swapped: the rows rise by h cos(theta) and move sideways by h sin(theta)":
-            (i * h * np.sin(theta),)})
-    flat = np.stack([j * h, i * h], axis=1)
+    y, wrong = EXPECTED.arrays("sheared_rows")  # the particles' heights y
+    check_known((x[:, 1],), y, wrong, whats=("y",))
     structural, shear = grid_springs((n_rows, n_cols), "structural"), grid_springs((n_rows, n_cols), "shear")
-    check_array(lengths(x, structural), lengths(flat, structural), rtol=1e-12, atol=1e-14,
+    (flat_structural, flat_shear), _ = EXPECTED.arrays("flat_lengths")  # the springs' lengths before shearing
+    check_array(lengths(x, structural), flat_structural, rtol=1e-12, atol=1e-14,
                 what="structural spring lengths after shearing")
-    change = np.abs(lengths(x, shear) - lengths(flat, shear))
+    change = np.abs(lengths(x, shear) - flat_shear)
     assert change.min() > 0.01 * h, "every shear spring must change its length under shear"

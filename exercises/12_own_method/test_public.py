@@ -7,12 +7,13 @@ import pytest
 
 from mslab import ExplicitRK
 from mslab.derive import order
-from mslab.grading import mistakes
 from mslab.grading.checks import as_numbers, check_array, check_known
+from mslab.grading.expected import Expected
 from mslab.grading.problems import problem
 from mslab.state import State
 
 MODULE = "own_method"
+EXPECTED = Expected(__file__)  # the answers of known mistakes (expected.json)
 
 KUTTA3 = (np.array([[0, 0, 0], [0.5, 0, 0], [-1, 2, 0]], dtype=float), np.array([1 / 6, 2 / 3, 1 / 6]))
 HEUN3 = (np.array([[0, 0, 0], [1 / 3, 0, 0], [0, 2 / 3, 0]], dtype=float), np.array([0.25, 0.0, 0.75]))
@@ -25,13 +26,16 @@ def tableau(out):
     return A, b
 
 
+def moving_chain():
+    prob = problem("chain", n=4, dim=2, stiffness=50.0, gamma=0.3, sag=0.2)
+    return prob, np.random.default_rng(12).normal(size=prob.x0.shape) * (~prob.pinned)[:, None]
+
+
 @pytest.mark.points(2)
 def test_residuals_of_kutta_and_of_a_second_order_method(student):
     A, b = KUTTA3
-    c = A.sum(axis=0)  # a common slip: the column sums
-    columns = np.array([b.sum() - 1, b @ c - 1 / 2, b @ c**2 - 1 / 3, b @ A @ c - 1 / 6])
     check_known((student.order3_conditions(A, b),), (np.zeros(4),), whats=("Kutta's residuals",), atol=1e-14,
-                mistakes={"the nodes c = A 1 are the row sums of A, not its column sums": (columns,)})
+                mistakes=EXPECTED.arrays("kutta_column_nodes")[1])
     # Heun's second-order method (two stages): order 2 holds, the two order-3 conditions fail
     A = np.array([[0.0, 0.0], [1.0, 0.0]])
     b = np.array([0.5, 0.5])
@@ -51,14 +55,12 @@ def test_kutta_family_gives_kutta_and_heun3(student):
 @pytest.mark.points(1)
 def test_rk3_step_with_kutta_matches_the_library(student):
     # one step of Kutta's tableau on a moving, damped chain against the library's stepping of it
-    prob = problem("chain", n=4, dim=2, stiffness=50.0, gamma=0.3, sag=0.2)
-    v0 = np.random.default_rng(12).normal(size=prob.x0.shape) * (~prob.pinned)[:, None]
+    prob, v0 = moving_chain()
     A, b = KUTTA3
     ref = ExplicitRK(A, b, name="kutta").step(prob.system(), State(prob.x0.copy(), v0.copy()), 0.01)
     out = student.rk3_step(prob.x0, v0, prob, 0.01, A, b)
     assert isinstance(out, tuple | list) and len(out) == 2, "return (x_new, v_new)"
-    check_known(tuple(out), (ref.x, ref.v), mistakes.rk_stages(prob, prob.x0, v0, 0.01, A, b),
-                whats=("x_new", "v_new"))
+    check_known(tuple(out), (ref.x, ref.v), EXPECTED.arrays("kutta_step")[1], whats=("x_new", "v_new"))
 
 
 @pytest.mark.points(2)

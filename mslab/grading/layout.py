@@ -9,6 +9,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from mslab.grading.expected import FILE as EXPECTED_FILE
 from mslab.grading.intake import (
     LAYOUTS,
     Submission,
@@ -38,7 +39,8 @@ class Exercise:
     module : str
         File name of the student's source (the one with solution blocks).
     tests : dict
-        Test file name -> source text (public and hidden), read once.
+        Test file name -> source text (public and hidden), read once; with the public tests'
+        stored answers (``expected.json``), which travel with them to the runner.
     points : dict
         ``"file::test_name"`` -> points, from the ``@pytest.mark.points(n)`` markers.
     """
@@ -100,6 +102,9 @@ def find_exercises(source: str | Path) -> list[Exercise]:
             text = test.read_text()
             ex.tests[test.name] = text
             ex.points.update(test_points(test.name, text))
+        data = folder / EXPECTED_FILE  # the public tests' stored answers travel with them
+        if data.is_file():
+            ex.tests[data.name] = data.read_text()
         found.append(ex)
     if not found:
         raise ValueError(f"{source}: no exercise folders (NN_topic) found")

@@ -23,7 +23,8 @@ STUDENT_README = """# Exercises
 One folder per exercise, in the order of the lessons. Each holds a `README.md` (the task and
 its equations), one Python file with the functions to write (replace every
 `raise NotImplementedError`; keep the file name and the function names) and
-`test_public.py`, tests you can run yourself.
+`test_public.py`, tests you can run yourself (with `expected.json`, the numbers some of them
+compare with: keep it beside them).
 
 The lessons are the notebooks in the `lessons/` folder of the course repository. Open them
 with `make lab` in the repository (it installs everything into `.venv` and starts JupyterLab),
