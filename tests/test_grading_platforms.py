@@ -39,7 +39,8 @@ from mslab.grading.platforms import (
 
 ROOT = Path(__file__).resolve().parents[1]
 SOURCE = ROOT / "exercises"
-TARGET, MODULE = "02_euler_steps", "euler_steps.py"
+#: packaged and graded on the platforms (its public tests read stored answers: expected.json travels too)
+TARGET, MODULE = "03_heun_midpoint", "heun_midpoint.py"
 
 _VISIBILITY = {"enum": ["hidden", "after_due_date", "after_published", "visible"]}
 #: Gradescope's autograder specification, "Output format" (docs/specs.md of gradescope/autograder_samples)
@@ -264,11 +265,11 @@ def _steal():
     return text
 
 
-def forward_euler_step(x, v, prob, dt):
+def heun_step(x, v, prob, dt):
     raise RuntimeError(_steal())
 
 
-symplectic_euler_step = symplectic_euler_x_step = forward_euler_step
+midpoint_step = heun_step
 '''
 
 
@@ -321,9 +322,10 @@ def test_packages_hold_tests_but_no_solution(packages):
 
     with zipfile.ZipFile(packages / "gradescope.zip") as z:
         names = set(z.namelist())
-        assert {"setup.sh", "run_autograder", f"exercises/{TARGET}/test_hidden.py"} <= names
+        assert {"setup.sh", "run_autograder", f"exercises/{TARGET}/test_hidden.py",
+                f"exercises/{TARGET}/expected.json"} <= names
         assert all((z.getinfo(n).external_attr >> 16) & 0o111 for n in ("setup.sh", "run_autograder"))
-    assert not any(n.startswith(("exercises/01_", "exercises/03_")) for n in names)
+    assert not any(n.startswith(("exercises/01_", "exercises/02_")) for n in names)
     solution = solution_lines((SOURCE / TARGET / MODULE).read_text())
     for folder in (packages / "gradescope" / "exercises",
                    packages / "prairielearn" / "serverFilesCourse" / "mslab_grader" / "exercises"):

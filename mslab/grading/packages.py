@@ -38,7 +38,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from mslab.files import current_umask
-from mslab.grading.layout import BEGIN, END, TEST, find_exercises
+from mslab.grading.layout import BEGIN, END, find_exercises
 from mslab.grading.release import SKIP_DIRS, SKIP_SUFFIXES, strip_solutions
 
 PACKAGE_DIR = Path(__file__).resolve().parents[1]
@@ -149,9 +149,8 @@ def _package_exercises(src: Path, dest: Path, only: list[str] | None) -> list[st
     for ex in exercises:
         folder = dest / ex.name
         folder.mkdir(parents=True)
-        for path in sorted(ex.folder.iterdir()):
-            if path.is_file() and not path.is_symlink() and TEST.match(path.name):
-                shutil.copyfile(path, folder / path.name)
+        for name, text in sorted(ex.tests.items()):  # the tests and their stored answers, as read
+            (folder / name).write_text(text)
         text = (ex.folder / ex.module).read_text()
         (folder / ex.module).write_text(strip_solutions(text, ex.module) + EMPTY_SOLUTION)
     return [e.name for e in exercises]
