@@ -157,12 +157,12 @@ MISTAKES: list[Mistake] = [
        "    return A, np.array([1.0, 1.0, 2.0, 2.0]) / 6.0, c\n",
        {"P:test_rk4_tableau_reproduces_the_stages_of_the_course",
         "H:test_student_rk4_tableau_drives_the_library"},
-       {"P:test_rk4_tableau_reproduces_the_stages_of_the_course": "1/6, 1/3, 1/3, 1/6"}),
+       {"P:test_rk4_tableau_reproduces_the_stages_of_the_course": "weights misordered"}),
     _m("04 RK4 weights 1/4 each", E04, M04,
        "\n_t = rk4_tableau\ndef rk4_tableau():\n    A, b, c = _t()\n    return A, np.full(4, 0.25), c\n",
        {"P:test_rk4_tableau_reproduces_the_stages_of_the_course",
         "H:test_student_rk4_tableau_drives_the_library"},
-       {"P:test_rk4_tableau_reproduces_the_stages_of_the_course": "1/6, 1/3, 1/3, 1/6"}),
+       {"P:test_rk4_tableau_reproduces_the_stages_of_the_course": "equal weights"}),
     _m("04 position slope is the old velocity", E04, M04,
        (("kx.append(vi)", "kx.append(v)"),),
        {"P:test_rk_step_with_rk4_matches_the_library",
@@ -325,7 +325,7 @@ MISTAKES: list[Mistake] = [
         "P:test_loose_target_goes_to_low_order_and_tight_to_high_order",
         "H:test_choice_from_runs_measured_by_the_library_reaches_the_target",
         "H:test_the_start_up_evaluation_decides_a_tie", "H:test_a_table_drawn_at_grading"},
-       {"P:test_step_and_cost_of_one_method": "(target / C)^(1/p)"}),
+       {"P:test_step_and_cost_of_one_method": "the power p, not the root"}),
 
     _m("11 one diagonal per cell", E11, M11,
        "\n_gs = grid_springs\ndef grid_springs(n_rows, n_cols, kind):\n"

@@ -43,7 +43,9 @@ def _load(path: Path, name: str) -> ModuleType:
 def _plain(values: list | tuple) -> list:
     out = []
     for a in values:
-        if np.ndim(a) == 0:
+        if np.iscomplexobj(a):
+            out.append({"re": np.real(a).tolist(), "im": np.imag(a).tolist()})
+        elif np.ndim(a) == 0:
             out.append(float(a))
         else:
             out.append(np.asarray(a, dtype=float).tolist())
@@ -62,12 +64,18 @@ def compute(folder: Path) -> dict:
     return data
 
 
+def _array(value: float | list | dict) -> np.ndarray:
+    if isinstance(value, dict):
+        return np.array(value.get("re"), dtype=float) + 1j * np.array(value.get("im"), dtype=float)
+    return np.asarray(value, dtype=float)
+
+
 def _values_differ(stored: list, fresh: list, where: str) -> list[str]:
     if not isinstance(stored, list) or len(stored) != len(fresh):
         return [f"{where}: the number of values differs"]
     out = []
     for i, (s, f) in enumerate(zip(stored, fresh, strict=True)):
-        s_arr, f_arr = np.asarray(s, dtype=float), np.asarray(f, dtype=float)
+        s_arr, f_arr = _array(s), _array(f)
         scale = float(np.max(np.abs(f_arr), initial=0.0))
         if s_arr.shape != f_arr.shape or not np.allclose(s_arr, f_arr, rtol=RTOL, atol=RTOL * scale):
             out.append(f"{where}[{i}]: stored and fresh differ beyond round-off")

@@ -10,6 +10,7 @@ from mslab.state import State
 
 MODULE = "heun_midpoint"
 EXPECTED = Expected(__file__)  # the answers of steps with slopes at the wrong times (expected.json)
+DT = 0.01  # the step on the moving chain (the key in tools/ reads it here)
 
 
 def pair(out, shape):
@@ -28,7 +29,7 @@ HINTS = {"midpoint": "this is the midpoint method's step: Heun averages the slop
 def known(method, other, prob, v0):
     """The steps of common mistakes of ``method``: the other method's, Euler's, slopes at wrong times."""
     wrong = {hint: State(*out) for hint, out in EXPECTED.arrays(f"{method}_moving_chain")[1].items()}
-    return {**{HINTS[m]: reference_run(m, prob, prob.x0, v0, 0.01) for m in (other, "euler")}, **wrong}
+    return {**{HINTS[m]: reference_run(m, prob, prob.x0, v0, DT) for m in (other, "euler")}, **wrong}
 
 
 def moving_chain():
@@ -60,14 +61,14 @@ def test_heun_on_a_swinging_spring(student):
 @pytest.mark.points(2)
 def test_heun_matches_the_library(student):
     prob, v0 = moving_chain()
-    ref = reference_run("heun", prob, prob.x0, v0, 0.01)
-    x, v = pair(student.heun_step(prob.x0, v0, prob, 0.01), (5, 2))
+    ref = reference_run("heun", prob, prob.x0, v0, DT)
+    x, v = pair(student.heun_step(prob.x0, v0, prob, DT), (5, 2))
     check_step(x, v, ref, mistakes=known("heun", "midpoint", prob, v0))
 
 
 @pytest.mark.points(2)
 def test_midpoint_matches_the_library(student):
     prob, v0 = moving_chain()
-    ref = reference_run("midpoint", prob, prob.x0, v0, 0.01)
-    x, v = pair(student.midpoint_step(prob.x0, v0, prob, 0.01), (5, 2))
+    ref = reference_run("midpoint", prob, prob.x0, v0, DT)
+    x, v = pair(student.midpoint_step(prob.x0, v0, prob, DT), (5, 2))
     check_step(x, v, ref, mistakes=known("midpoint", "heun", prob, v0))

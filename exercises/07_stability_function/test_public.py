@@ -6,10 +6,18 @@ import numpy as np
 import pytest
 
 from mslab.grading.checks import check_known, check_scalar
+from mslab.grading.expected import Expected
 from mslab.integrators import get_method
 from mslab.stability import real_interval
 
 MODULE = "stability_function"
+EXPECTED = Expected(__file__)
+
+
+def rk4_grid():
+    """Points z of the complex plane where RK4's R(z) is checked."""
+    re, im = np.meshgrid(np.linspace(-3, 1, 5), np.linspace(-3, 3, 4))
+    return re + 1j * im
 
 
 @pytest.mark.points(2)
@@ -23,15 +31,10 @@ def test_forward_euler_is_one_plus_z(student):
 
 @pytest.mark.points(2)
 def test_rk4_is_the_taylor_polynomial(student):
-    rk4 = get_method("rk4")
-    re, im = np.meshgrid(np.linspace(-3, 1, 5), np.linspace(-3, 3, 4))
-    z = re + 1j * im
+    rk4, z = get_method("rk4"), rk4_grid()
     expected = sum(z**k / math.factorial(k) for k in range(5))
-    # a common slip, A transposed: its R(z) = 1 + z sum_k z^k b^T (A^T)^k 1 (A^T is nilpotent)
-    At, ones = rk4.A.T, np.ones(4)
-    transposed = 1.0 + z * sum(float(rk4.b @ np.linalg.matrix_power(At, k) @ ones) * z**k for k in range(4))
     check_known((student.stability_function(rk4.A, rk4.b, z),), (expected,),
-                {"A transposed: stage i uses row i of A, R(z) = 1 + z b^T (I - z A)^-1 1": (transposed,),
+                {**EXPECTED.arrays("rk4_transposed")[1],  # a common slip, A transposed (expected.json)
                  "the leading 1 is missing: R(z) = 1 + z b^T (I - z A)^-1 1": (expected - 1.0,)},
                 whats=("R(z)",), rtol=1e-12, atol=1e-12)
 

@@ -65,7 +65,7 @@ def test_loose_target_goes_to_low_order_and_tight_to_high_order(student):
     assert (as_count(n_steps, "n_steps"), as_count(n_force, "n_force")) == (4, 4), \
         f"(n_steps, n_force) = {(n_steps, n_force)}, expected (4, 4)"
     name, n_steps, n_force = student.cheapest(runs, 1e-6, 1.0)
-    # 'first' needs 50000 steps; 'fourth' h = (5e-7)^(1/4) = 0.0266: 38 steps, 152 evaluations
+    # 'first' needs 50000 steps; 'fourth' reaches the target at h = 0.0266: 38 steps, 152 evaluations
     assert name == "fourth", f"tight target 1e-6: chose {name!r}"
     assert (as_count(n_steps, "n_steps"), as_count(n_force, "n_force")) == (38, 152), \
         f"(n_steps, n_force) = {(n_steps, n_force)}, expected (38, 152)"

@@ -14,6 +14,7 @@ from mslab.state import State
 
 MODULE = "own_method"
 EXPECTED = Expected(__file__)  # the answers of known mistakes (expected.json)
+DT = 0.01  # the step of the rk3 test (the key in tools/ reads it here)
 
 KUTTA3 = (np.array([[0, 0, 0], [0.5, 0, 0], [-1, 2, 0]], dtype=float), np.array([1 / 6, 2 / 3, 1 / 6]))
 HEUN3 = (np.array([[0, 0, 0], [1 / 3, 0, 0], [0, 2 / 3, 0]], dtype=float), np.array([0.25, 0.0, 0.75]))
@@ -57,8 +58,8 @@ def test_rk3_step_with_kutta_matches_the_library(student):
     # one step of Kutta's tableau on a moving, damped chain against the library's stepping of it
     prob, v0 = moving_chain()
     A, b = KUTTA3
-    ref = ExplicitRK(A, b, name="kutta").step(prob.system(), State(prob.x0.copy(), v0.copy()), 0.01)
-    out = student.rk3_step(prob.x0, v0, prob, 0.01, A, b)
+    ref = ExplicitRK(A, b, name="kutta").step(prob.system(), State(prob.x0.copy(), v0.copy()), DT)
+    out = student.rk3_step(prob.x0, v0, prob, DT, A, b)
     assert isinstance(out, tuple | list) and len(out) == 2, "return (x_new, v_new)"
     check_known(tuple(out), (ref.x, ref.v), EXPECTED.arrays("kutta_step")[1], whats=("x_new", "v_new"))
 

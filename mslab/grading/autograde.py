@@ -326,7 +326,7 @@ def _grade(paths: Iterable[str | Path], source: str | Path, jobs: int, only: lis
                 outcomes[key] = (book.done[key].get("entry"), str(book.done[key].get("why", "")))
                 continue
             items.append({"key": key, "name": ex.name, "module": ex.module, "student_source": text,
-                          "tests": ex.tests, "n_tests": len(ex.points),
+                          "tests": ex.tests, "n_tests": len(ex.points), "problems": ex.hands_problems,
                           "cpu_s": int(timeout * len(ex.points) + 60)})
     lock = threading.Lock()
     total = len(items)

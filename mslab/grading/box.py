@@ -337,3 +337,23 @@ def _tree_cpu(root: int) -> float:
         total += ticks.get(pid, 0)
         todo.extend(children.get(pid, ()))
     return total / os.sysconf("SC_CLK_TCK")
+
+
+def user_process_cap(extra: int) -> int:
+    """Return an ``RLIMIT_NPROC`` that lets this user start ``extra`` more processes than it has now.
+
+    Without a cgroup and as a user (not root) no limit counts one sandbox's processes only:
+    ``RLIMIT_NPROC`` counts all processes of the user. Set to its count at the sandbox's
+    start plus ``extra``, it stops a fork bomb within ``extra`` processes; sandboxes side by
+    side share that headroom (one's bomb can make a classmate's fork fail until the bomb's
+    sandbox is killed at its limit), and the grader's own processes count too.
+    """
+    uid, count = os.getuid(), 0
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                if os.stat(f"/proc/{entry}").st_uid == uid:
+                    count += 1
+            except OSError:
+                continue
+    return count + extra

@@ -17,7 +17,7 @@ file cannot import it.
 
 The file holds JSON only (nothing that is executed or expanded). Its format: a case name ->
 ``{"expected": [value, ...], "mistakes": {hint: [value, ...]}}``, where each value is a
-number or a nested list of numbers (an array).
+number, a nested list of numbers (an array), or ``{"re": array, "im": array}`` (a complex array).
 """
 
 from __future__ import annotations
@@ -30,10 +30,18 @@ import numpy as np
 FILE = "expected.json"
 
 
+def _value(a: object) -> float | np.ndarray:
+    if isinstance(a, int | float):
+        return float(a)
+    if isinstance(a, dict):  # a complex array: {"re": [...], "im": [...]}
+        return np.array(a["re"], dtype=float) + 1j * np.array(a["im"], dtype=float)
+    return np.array(a, dtype=float)
+
+
 def _values(items: list, where: str) -> tuple:
     if not isinstance(items, list):
         raise ValueError(f"{where}: expected a list of values")
-    return tuple(float(a) if isinstance(a, int | float) else np.array(a, dtype=float) for a in items)
+    return tuple(_value(a) for a in items)
 
 
 class Expected:

@@ -44,6 +44,16 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 #: the trusted files the sandbox runs (imported by file path, without mslab)
 SANDBOX_FILES = ("sandbox.py", "wire.py", "problems.py", "unzip.py")
+#: the trusted acceleration of the step exercises: a spring-force implementation, so a sandbox
+#: has it only where the tests hand the student a problem (never for exercise 01's forces)
+PROBLEMS = "problems.py"
+
+
+def sandbox_files(problems: bool = True) -> tuple[str, ...]:
+    """Return the trusted files a sandbox gets: all of them, or without the problems' acceleration."""
+    return SANDBOX_FILES if problems else tuple(f for f in SANDBOX_FILES if f != PROBLEMS)
+
+
 JAIL = HERE / "jail.py"
 MODES = ("bwrap", "namespaces", "rlimits")
 #: size of the student's /work and /tmp (bytes)
@@ -106,8 +116,11 @@ def _outermost(paths: list[str]) -> list[str]:
     return sorted(out)
 
 
-def plan() -> Plan:
-    """Return the mounts of a sandbox (the same for every student; computed by the runner)."""
+def plan(problems: bool = True) -> Plan:
+    """Return the mounts of a sandbox (the same for every student; computed by the runner).
+
+    ``problems=False``: without ``problems.py`` (:func:`sandbox_files`).
+    """
     import numpy
 
     exe, folders = _python_files()
@@ -143,7 +156,7 @@ def plan() -> Plan:
     libs = numpy_dir + ".libs"
     if os.path.isdir(libs):
         mounts.append(Mount("ro", "/grader/numpy.libs", libs))
-    for name in SANDBOX_FILES:
+    for name in sandbox_files(problems):
         mounts.append(Mount("ro", f"/grader/{name}", str(HERE / name)))
     dirs.add("/grader")
     mounts.append(Mount("tmpfs", "/work", size=TMPFS_SIZE, mode=0o1777))
@@ -212,7 +225,8 @@ def _stage() -> Path:
     """Return the root-owned folder of what a sandbox run as a throwaway uid may read (one per runner).
 
     Mode 0711 (others may pass, not list): ``grader/`` holds the sandbox's own files
-    (mode 0444) and links to numpy; each sandbox gets a folder ``work-UID`` of its own.
+    (mode 0444) and links to numpy, ``grader-plain/`` the same without ``problems.py``; each
+    sandbox gets a folder ``work-UID`` of its own.
     """
     global _STAGE
     if _STAGE is None:
@@ -220,20 +234,21 @@ def _stage() -> Path:
 
         stage = Path(tempfile.mkdtemp(prefix="stage-", dir=os.environ.get(HOME_ENV) or None))
         os.chmod(stage, 0o711)
-        grader = stage / "grader"
-        grader.mkdir(mode=0o755)
-        for name in SANDBOX_FILES:
-            shutil.copyfile(HERE / name, grader / name)
-            os.chmod(grader / name, 0o444)
         numpy_dir = os.path.dirname(os.path.realpath(numpy.__file__))
-        os.symlink(numpy_dir, grader / "numpy")
-        if os.path.isdir(numpy_dir + ".libs"):
-            os.symlink(numpy_dir + ".libs", grader / "numpy.libs")
+        for folder, problems in (("grader", True), ("grader-plain", False)):
+            grader = stage / folder
+            grader.mkdir(mode=0o755)
+            for name in sandbox_files(problems):
+                shutil.copyfile(HERE / name, grader / name)
+                os.chmod(grader / name, 0o444)
+            os.symlink(numpy_dir, grader / "numpy")
+            if os.path.isdir(numpy_dir + ".libs"):
+                os.symlink(numpy_dir + ".libs", grader / "numpy.libs")
         _STAGE = stage
     return _STAGE
 
 
-def rlimits_as_uid(module_file: Path, uid: int) -> tuple[list[str], Path]:
+def rlimits_as_uid(module_file: Path, uid: int, problems: bool = True) -> tuple[list[str], Path]:
     """Return the command running a sandbox as ``uid`` (rlimits as root), and its own folder.
 
     The student's file is a root-owned read-only copy in ``work-UID`` (mode 0700, owned by
@@ -247,7 +262,8 @@ def rlimits_as_uid(module_file: Path, uid: int) -> tuple[list[str], Path]:
     shutil.copyfile(module_file, target)
     os.chmod(target, 0o444)
     python = os.path.realpath(sys.executable)
-    return [python, "-E", "-s", "-S", str(_stage() / "grader" / "sandbox.py"), str(target)], work
+    grader = _stage() / ("grader" if problems else "grader-plain")
+    return [python, "-E", "-s", "-S", str(grader / "sandbox.py"), str(target)], work
 
 
 def unreachable_for_others() -> str:
@@ -264,32 +280,17 @@ def unreachable_for_others() -> str:
     return ""
 
 
-def user_process_cap(extra: int) -> int:
-    """Return an ``RLIMIT_NPROC`` that lets this user start ``extra`` more processes than it has now.
+def rlimits_sandbox(module_file: Path, workdir: Path,
+                    problems: bool = True) -> tuple[list[str], Path, int | None]:
+    """Return the rlimits sandbox's command, folder and uid (a throwaway one as root, else None).
 
-    Without a cgroup and as a user (not root) no limit counts one sandbox's processes only:
-    ``RLIMIT_NPROC`` counts all processes of the user. Set to its count at the sandbox's
-    start plus ``extra``, it stops a fork bomb within ``extra`` processes; sandboxes side by
-    side share that headroom (one's bomb can make a classmate's fork fail until the bomb's
-    sandbox is killed at its limit), and the grader's own processes count too.
+    As the grader's own user (no throwaway uid) the student reads what the grader reads, the
+    installed mslab included: ``problems`` cannot be withheld there (README's table).
     """
-    uid, count = os.getuid(), 0
-    for entry in os.listdir("/proc"):
-        if entry.isdigit():
-            try:
-                if os.stat(f"/proc/{entry}").st_uid == uid:
-                    count += 1
-            except OSError:
-                continue
-    return count + extra
-
-
-def rlimits_sandbox(module_file: Path, workdir: Path) -> tuple[list[str], Path, int | None]:
-    """Return the rlimits sandbox's command, folder and uid (a throwaway one as root, else None)."""
     uid = new_uid()
     if uid is None:
         return rlimit_command(module_file), workdir, None
-    argv, home = rlimits_as_uid(module_file, uid)
+    argv, home = rlimits_as_uid(module_file, uid, problems)
     return argv, home, uid
 
 

@@ -52,6 +52,17 @@ class Exercise:
     points: dict[str, float] = field(default_factory=dict)
 
     @property
+    def hands_problems(self) -> bool:
+        """Whether a test may hand the student a problem (then its sandbox gets ``problems.py``).
+
+        Read from the tests' text: a test that names no problem (``problem``, ``step_order``,
+        ``observed_order``, ``swinging_spring``) gets a sandbox without the file, whose spring
+        forces would be exercise 01's answer.
+        """
+        words = ("problem", "step_order", "observed_order", "swinging_spring")
+        return any(w in text for name, text in self.tests.items() if name.endswith(".py") for w in words)
+
+    @property
     def max_points(self) -> float:
         """Points the exercise's tests are worth."""
         return float(sum(self.points.values()))

@@ -19,7 +19,15 @@ import subprocess
 from pathlib import Path
 
 from mslab.grading import isolation
-from mslab.grading.box import MAX_PROCESSES, POLL_CGROUP, POLL_PROC, Box, Budget, wall_backstop
+from mslab.grading.box import (
+    MAX_PROCESSES,
+    POLL_CGROUP,
+    POLL_PROC,
+    Box,
+    Budget,
+    user_process_cap,
+    wall_backstop,
+)
 from mslab.grading.wire import WireError, dumps, loads
 
 PR_SET_PDEATHSIG, PR_SET_DUMPABLE, PR_CAPBSET_DROP, PR_SET_NO_NEW_PRIVS = 1, 4, 24, 38
@@ -112,7 +120,7 @@ def _limits(memory_mb: int, cpu_s: int, file_mb: int, mode: str = "rlimits", box
             if os.geteuid() == 0:  # counts the fresh uid's processes only
                 resource.setrlimit(resource.RLIMIT_NPROC, (MAX_PROCESSES, MAX_PROCESSES))
         if uid is None and os.geteuid() != 0 and (box is None or not box.config):  # no cgroup: cap the count
-            cap = isolation.user_process_cap(MAX_PROCESSES)
+            cap = user_process_cap(MAX_PROCESSES)
             resource.setrlimit(resource.RLIMIT_NPROC, (cap, cap))
         mem = memory_mb * 1024 * 1024
         resource.setrlimit(resource.RLIMIT_AS, (mem, mem))
@@ -123,14 +131,13 @@ def _limits(memory_mb: int, cpu_s: int, file_mb: int, mode: str = "rlimits", box
     return apply
 
 
-_PLAN: isolation.Plan | None = None
+_PLANS: dict[bool, isolation.Plan] = {}
 
 
-def _plan() -> isolation.Plan:
-    global _PLAN
-    if _PLAN is None:
-        _PLAN = isolation.plan()
-    return _PLAN
+def _plan(problems: bool = True) -> isolation.Plan:
+    if problems not in _PLANS:
+        _PLANS[problems] = isolation.plan(problems)
+    return _PLANS[problems]
 
 
 class Sandbox:
@@ -141,12 +148,15 @@ class Sandbox:
     not used: the sandbox sees its own ``/work`` only. ``source``: the module's bytes as the
     runner received them (then no file is read again). ``cgroups`` is the grading's parent
     cgroup (:func:`mslab.grading.box.setup`) or None: each start gets a fresh :class:`Box`.
+    ``problems=False``: the sandbox gets no ``problems.py`` (an exercise whose tests hand the
+    student no problem: that file's spring forces are exercise 01's answer).
     """
 
     def __init__(self, module_file: Path, workdir: Path, memory_mb: int = 1024, cpu_s: int = 60,
                  file_mb: int = 1, import_timeout: float = 30.0, mode: str = "rlimits",
-                 cgroups: dict | None = None, source: bytes | None = None):
+                 cgroups: dict | None = None, source: bytes | None = None, problems: bool = True):
         self.module_file = Path(module_file)
+        self.problems = problems
         self.mode = mode
         self.import_timeout = float(import_timeout)
         self.workdir = Path(workdir)
@@ -175,11 +185,11 @@ class Sandbox:
 
     def _command(self) -> tuple[list[str], tuple[int, ...], Path | None]:
         if self.mode == "rlimits":  # as root: a throwaway uid on a stage of its own
-            argv, cwd, self.uid = isolation.rlimits_sandbox(self.module_file, self.workdir)
+            argv, cwd, self.uid = isolation.rlimits_sandbox(self.module_file, self.workdir, self.problems)
             return argv, (), cwd
         os.lseek(self._source_fd, 0, os.SEEK_SET)
         build = isolation.bwrap_command if self.mode == "bwrap" else isolation.jail_command
-        argv = build(_plan(), self._source_fd, isolation.new_uid(), module=self.module_file.name)
+        argv = build(_plan(self.problems), self._source_fd, isolation.new_uid(), module=self.module_file.name)
         return argv, (self._source_fd,), None
 
     def ensure_started(self) -> None:

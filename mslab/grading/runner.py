@@ -211,7 +211,8 @@ def run_exercise(job: dict, ex: dict) -> dict:
             return Sandbox(folder / ex["module"], folder, memory_mb=int(job.get("memory_mb", 1024)),
                            cpu_s=int(ex.get("cpu_s", 120)),
                            import_timeout=float(job.get("import_timeout", 30.0)),
-                           mode=job.get("isolation", "rlimits"), cgroups=job.get("cgroups"), source=source)
+                           mode=job.get("isolation", "rlimits"), cgroups=job.get("cgroups"), source=source,
+                           problems=bool(ex.get("problems", True)))
 
         plugin = GradingPlugin(make_sandbox, float(job.get("timeout", 10.0)), missing,
                                check_cpu=job.get("check_cpu"))

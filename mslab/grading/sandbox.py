@@ -24,7 +24,6 @@ import os
 import sys
 import traceback
 
-from problems import Problem
 from wire import WireError, dumps, loads
 
 
@@ -82,7 +81,11 @@ def main() -> None:
         return
     send({"ready": True})
 
-    def make_problem(spec: dict) -> Problem:
+    def make_problem(spec: dict) -> object:
+        # imported only when a test hands a problem over: a sandbox of an exercise whose tests
+        # never do has no problems.py (its spring forces are exercise 01's answer)
+        from problems import Problem
+
         return Problem(spec["name"], **spec["params"])
 
     for line in chan_in:

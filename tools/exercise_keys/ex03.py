@@ -22,7 +22,7 @@ def _swinging(t):
 def _chain(method):
     def key(t):
         prob, v0 = t.moving_chain()
-        return {"mistakes": _wrong_slopes(method, prob, prob.x0, v0, 0.01)}
+        return {"mistakes": _wrong_slopes(method, prob, prob.x0, v0, t.DT)}
     return key
 
 

@@ -19,12 +19,11 @@ def rk_stages(accel, x, v, dt, A, b):
             "the stages are y_n + h sum_j A_ij K_j: the sum is missing its factor times h": step(False, 1.0)}
 
 
-def _chain(name, dt):
+def _chain(name):
     def key(t):
-        prob, method = t.damped_chain() if name == "rk4" else t.short_chain(), t.get_method(name)
-        return {"mistakes": rk_stages(prob, prob.x0, prob.v0, dt, method.A, method.b)}
+        (prob, v0, dt), method = t.damped_chain() if name == "rk4" else t.short_chain(), t.get_method(name)
+        return {"mistakes": rk_stages(prob, prob.x0, v0, dt, method.A, method.b)}
     return key
 
 
-CASES = {"rk4_chain": _chain("rk4", 0.01), "euler_chain": _chain("euler", 0.02),
-         "heun_chain": _chain("heun", 0.02)}
+CASES = {"rk4_chain": _chain("rk4"), "euler_chain": _chain("euler"), "heun_chain": _chain("heun")}

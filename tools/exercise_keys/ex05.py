@@ -1,20 +1,19 @@
 """Key of exercise 05 (Verlet and leapfrog): wrong start-ups, and steps with a wrong term."""
 
-RULE = "(x_-1 = x_0 - h v_0 + h^2/2 a_0)"
-
-
 def _verlet_start(t):
     prob, v0 = t.start_state()
-    h, x0 = 0.01, prob.x0
+    h, x0 = t.DT, prob.x0
     a0 = prob(x0)
-    return {"mistakes": {f"the h^2/2 a term is missing {RULE}": [x0 - h * v0],
-                         f"a forward step, not a backward one {RULE}": [x0 + h * v0 + h * h / 2 * a0],
-                         f"the sign of the h^2/2 a term {RULE}": [x0 - h * v0 - h * h / 2 * a0]}}
+    # the hints name the mistake, never the right formula (the README gives the Taylor expansion)
+    return {"mistakes": {"the h^2/2 a term is missing: expand x(t_0 - h) to second order": [x0 - h * v0],
+                         "a forward step, not a backward one: x_-1 lies one step before x_0":
+                         [x0 + h * v0 + h * h / 2 * a0],
+                         "the sign of the h^2/2 a term: (-h)^2 is positive": [x0 - h * v0 - h * h / 2 * a0]}}
 
 
 def _leapfrog_start(t):
     prob, v0 = t.start_state()
-    h = 0.01
+    h = t.DT
     hint = "a whole Euler step, not half of one (v_1/2 = v_0 + h/2 a_0)"
     return {"mistakes": {hint: [v0 + h * prob(prob.x0)]}}
 

@@ -22,8 +22,8 @@ def _noisy(t):
 def _step(t):
     C, p, target = t.one_method()
     return {"expected": [(target / C) ** (1.0 / p)], "mistakes": {
-        "C h^p = target gives h = (target / C)^(1/p)": [(target / C) ** p],
-        "h = (target / C)^(1/p), not (C / target)^(1/p)": [(C / target) ** (1.0 / p)]}}
+        "the power p, not the root: solve C h^p = target for h": [(target / C) ** p],
+        "C and the target swapped: a smaller target must give a smaller step": [(C / target) ** (1.0 / p)]}}
 
 
 CASES = {"exact_power_law_C": _exact_c, "noisy_power_law": _noisy, "step_for_target": _step}

@@ -14,7 +14,7 @@ def _column_nodes(t):
 def _kutta_step(t):
     prob, v0 = t.moving_chain()
     A, b = t.KUTTA3
-    return {"mistakes": rk_stages(prob, prob.x0, v0, 0.01, A, b)}
+    return {"mistakes": rk_stages(prob, prob.x0, v0, t.DT, A, b)}
 
 
 CASES = {"kutta_column_nodes": _column_nodes, "kutta_step": _kutta_step}
