@@ -1,5 +1,8 @@
 """A student's path holds no answer key (issue 36, item 3; issue 39: `make lab` as root).
 
+Both student paths are checked: `make lab` in the repository, and the course kit an instructor
+hands out (`mslab release --lessons`: the lessons and their student release, no repository).
+
 `make lab` opens JupyterLab with the lessons folder as its root and makes ``student/`` there, the
 student release of ``exercises/`` (``mslab release``). Every lesson's "Try it yourself" section
 links into that folder. Here the lab's own recipe (``make -n lab``) is run on a copy of the
@@ -27,6 +30,7 @@ import nbformat
 import numpy as np
 import pytest
 
+from mslab.cli import main as cli_main
 from mslab.grading.expected import FILE as EXPECTED_FILE
 from mslab.grading.expected import Expected
 from mslab.grading.layout import BEGIN, HIDDEN
@@ -53,9 +57,21 @@ def _try_it_links(lesson: Path) -> list[str]:
     return links
 
 
-@pytest.fixture(scope="module")
-def lab_root(tmp_path_factory) -> Path:
-    """A copy of lessons/ with the release made by `make lab`'s own recipe line."""
+@pytest.fixture(scope="module", params=["make lab", "course kit"])
+def lab_root(request, tmp_path_factory) -> Path:
+    """JupyterLab's root as a student opens it: `make lab`'s, or the course kit's.
+
+    `make lab`: a copy of lessons/ with the release made by its own recipe line. The course kit
+    (`mslab release exercises KIT --lessons lessons`): the lessons and their student release
+    without the course repository, what an instructor hands out.
+    """
+    if request.param == "course kit":
+        kit = tmp_path_factory.mktemp("kit") / "course"
+        lessons = str(ROOT / "lessons")
+        assert cli_main(["release", str(ROOT / "exercises"), str(kit), "--lessons", lessons]) == 0
+        assert sorted(p.name for p in kit.iterdir() if p.is_file()) == sorted(
+            ["README.md"] + [p.name for p in (ROOT / "lessons").iterdir() if p.suffix in (".ipynb", ".json")])
+        return kit
     root = tmp_path_factory.mktemp("lab") / "lessons"
     shutil.copytree(ROOT / "lessons", root, ignore=shutil.ignore_patterns("student", ".ipynb_checkpoints"))
     recipe = _make_lab_dry_run(root)
@@ -154,3 +170,20 @@ def test_the_stored_answers_are_what_the_instructor_keys_compute(capsys) -> None
     hint = next(iter(moved["small_net"]["mistakes"]))
     moved["small_net"]["mistakes"][hint][0][0][0] += 1e-6
     assert tool.differences(moved, json.loads(json.dumps(data))) and not tool.differences(data, data)
+
+
+def test_course_kit_options_are_checked(tmp_path, capsys) -> None:
+    """Bad --lessons calls end in one line, exit 2, nothing written."""
+    exercises, lessons = str(ROOT / "exercises"), str(ROOT / "lessons")
+    (tmp_path / "empty").mkdir()
+    for args, words in ((["release", exercises, "--lessons", lessons, "--gradescope", str(tmp_path / "gs")],
+                         "--lessons needs DEST"),
+                        (["release", exercises, str(tmp_path / "kit"), "--lessons", str(tmp_path / "empty")],
+                         "no lesson notebooks"),
+                        (["release", exercises, str(ROOT / "lessons" / "kit"), "--lessons", lessons],
+                         "must be outside")):
+        assert cli_main(args) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("mslab: error:") and words in err[0], err
+    assert not (tmp_path / "kit").exists() and not (ROOT / "lessons" / "kit").exists()
+    assert not (tmp_path / "gs").exists()

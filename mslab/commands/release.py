@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 from mslab.commands.common import CommandError, add_common_options, emit_json, say
 from mslab.grading.layout import default_source
 from mslab.grading.packages import build_gradescope, build_prairielearn
-from mslab.grading.release import release
+from mslab.grading.release import release, release_course
 
 if TYPE_CHECKING:
     import argparse
@@ -29,6 +29,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="write a Gradescope autograder (setup.sh, run_autograder; DIR.zip to upload)")
     p.add_argument("--prairielearn", metavar="DIR", default=None,
                    help="write a PrairieLearn external grader (Dockerfile, serverFilesCourse/, info.json)")
+    p.add_argument("--lessons", metavar="DIR", default=None,
+                   help="write a course kit: the lessons of DIR in DEST, the exercises in DEST/student "
+                        "(what students need, without the course repository)")
     p.add_argument("--exercise", action="append", default=None, metavar="NAME",
                    help="package only this exercise (repeatable; default all)")
     p.add_argument("--force", action="store_true", help="replace DEST (or DIR) if it exists")
@@ -56,10 +59,17 @@ def run(args: argparse.Namespace) -> int:
     src, dest = _paths(args)
     if args.exercise and dest is not None:
         raise CommandError("--exercise applies to --gradescope / --prairielearn only", key="--exercise")
+    if args.lessons and dest is None:
+        raise CommandError("--lessons needs DEST, the kit's folder", key="--lessons")
     warnings: list[str] = []
     doc: dict = {"source": src, "warnings": warnings}
     try:
-        if dest is not None:
+        if dest is not None and args.lessons:
+            files = release_course(src, args.lessons, dest, force=args.force, warnings=warnings)
+            doc.update(release=dest, files=[str(f) for f in files])
+            say(args, f"course kit: {len(files)} files in {dest} (lessons from {args.lessons}, "
+                      f"exercises from {src} in {dest}/student)")
+        elif dest is not None:
             files = release(src, dest, force=args.force, warnings=warnings)
             doc.update(release=dest, files=[str(f) for f in files])
             say(args, f"released {len(files)} files from {src} to {dest}")

@@ -26,10 +26,10 @@ its equations), one Python file with the functions to write (replace every
 `test_public.py`, tests you can run yourself (with `expected.json`, the numbers some of them
 compare with: keep it beside them).
 
-The lessons are the notebooks in the `lessons/` folder of the course repository. Open them
-with `make lab` in the repository (it installs everything into `.venv` and starts JupyterLab),
-or after `python -m pip install "mslab[students]"` (below) with `jupyter lab` in that folder; in each lesson,
-Kernel > Restart Kernel and Run All Cells brings its sliders to life.
+The lessons are notebooks. In the course kit (this folder is then its `student/`) they are in
+the folder above: after `python -m pip install "mslab[students]"` (below), run
+`python -m jupyter lab` there, and each lesson's "Try it yourself" opens your file here. In each
+lesson, Kernel > Restart Kernel and Run All Cells brings its sliders to life.
 
 ## Run the public tests on your work
 
@@ -63,6 +63,24 @@ time limit (10 s by default) and a memory limit. Printing is allowed but ignored
 
 Hand in this folder as it is (`<your name>/NN_topic/<file>.py`), as plain files: no links.
 """
+
+
+COURSE_README = """# The course
+
+The lessons are the notebooks in this folder (start with `00_mass_spring_systems.ipynb`);
+`student/` holds the exercises: each one's task, the file you complete and tests you can run
+(`student/README.md`). Install mslab, JupyterLab and pytest into one Python once:
+
+```
+python -m pip install "mslab[students]"
+```
+
+then, in this folder, `python -m jupyter lab`. In a lesson, Kernel > Restart Kernel and Run All
+Cells brings its sliders to life, and its "Try it yourself" opens your file in `student/`.
+Hand in what `student/README.md` says.
+"""
+#: what a course kit takes from the lessons folder: the notebooks and the data files they read
+LESSON_FILES = ("*.ipynb", "*.json")
 
 
 def strip_solutions(text: str, filename: str = "<source>") -> str:
@@ -194,3 +212,40 @@ def release(src: str | Path, dest: str | Path, force: bool = False,
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return written
+
+
+def release_course(src: str | Path, lessons: str | Path, dest: str | Path, force: bool = False,
+                   warnings: list[str] | None = None) -> list[Path]:
+    """Write a course kit: the lessons in ``dest`` and the student release of ``src`` in ``dest/student``.
+
+    The layout of ``make lab`` (JupyterLab's root is the lessons folder, whose "Try it
+    yourself" links lead into ``student/``) without the instructor's tree, so a student needs
+    nothing of the course repository. From ``lessons`` only the notebooks and the data files
+    they read (:data:`LESSON_FILES`, top level) are copied; a ``README.md`` tells how to start.
+    Built in a temporary sibling folder and renamed into place, like :func:`release`.
+    """
+    src, lessons, dest = Path(src).resolve(), Path(lessons).resolve(), Path(dest).resolve()
+    notebooks = sorted(p for pattern in LESSON_FILES for p in lessons.glob(pattern) if p.is_file())
+    if not any(p.suffix == ".ipynb" for p in notebooks):
+        raise ValueError(f"{lessons}: no lesson notebooks (*.ipynb) found")
+    for inside in (lessons, src):
+        if dest == inside or dest.is_relative_to(inside) or inside.is_relative_to(dest):
+            raise ValueError(f"{dest}: the kit must be outside {inside}")
+    if dest.exists() and any(dest.iterdir()) and not force:
+        raise ValueError(f"{dest}: exists and is not empty (use --force to replace it)")
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{dest.name}-", dir=dest.parent))
+    try:
+        written = [tmp / p.name for p in notebooks]
+        for path in notebooks:
+            shutil.copyfile(path, tmp / path.name)
+        (tmp / "README.md").write_text(COURSE_README)
+        written += [tmp / "README.md", *release(src, tmp / "student", warnings=warnings)]
+        os.chmod(tmp, 0o777 & ~current_umask())
+        if dest.exists():
+            shutil.rmtree(dest)
+        os.replace(tmp, dest)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return [dest / p.relative_to(tmp) for p in written]
