@@ -7,6 +7,8 @@ import os
 import re
 import shutil
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from mslab.files import current_umask
@@ -181,12 +183,8 @@ def release(src: str | Path, dest: str | Path, force: bool = False,
         raise ValueError(f"{dest}: the release must be outside the source folder {src}")
     if not any(EXERCISE_NAME.match(p.name) for p in src.iterdir() if p.is_dir()):
         raise ValueError(f"{src}: no exercise folders (NN_topic) found")
-    if dest.exists() and any(dest.iterdir()) and not force:
-        raise ValueError(f"{dest}: exists and is not empty (use --force to replace it)")
-    dest.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{dest.name}-", dir=dest.parent))
     written = []
-    try:
+    with _built_in_place(dest, force) as tmp:
         for rel, path in _released_files(src):
             target = tmp / rel
             target.parent.mkdir(parents=True, exist_ok=True)
@@ -204,6 +202,22 @@ def release(src: str | Path, dest: str | Path, force: bool = False,
         if not (tmp / "README.md").exists():
             (tmp / "README.md").write_text(STUDENT_README)
             written.append(dest / "README.md")
+    return written
+
+
+@contextmanager
+def _built_in_place(dest: Path, force: bool) -> Iterator[Path]:
+    """Yield a temporary sibling of ``dest`` to build in; it replaces ``dest`` when the block ends.
+
+    Refused if ``dest`` exists and is not empty without ``force``; a failure leaves nothing
+    behind. The result's permissions follow the umask.
+    """
+    if dest.exists() and any(dest.iterdir()) and not force:
+        raise ValueError(f"{dest}: exists and is not empty (use --force to replace it)")
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{dest.name}-", dir=dest.parent))
+    try:
+        yield tmp
         os.chmod(tmp, 0o777 & ~current_umask())
         if dest.exists():
             shutil.rmtree(dest)
@@ -211,7 +225,6 @@ def release(src: str | Path, dest: str | Path, force: bool = False,
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    return written
 
 
 def release_course(src: str | Path, lessons: str | Path, dest: str | Path, force: bool = False,
@@ -231,21 +244,10 @@ def release_course(src: str | Path, lessons: str | Path, dest: str | Path, force
     for inside in (lessons, src):
         if dest == inside or dest.is_relative_to(inside) or inside.is_relative_to(dest):
             raise ValueError(f"{dest}: the kit must be outside {inside}")
-    if dest.exists() and any(dest.iterdir()) and not force:
-        raise ValueError(f"{dest}: exists and is not empty (use --force to replace it)")
-    dest.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{dest.name}-", dir=dest.parent))
-    try:
+    with _built_in_place(dest, force) as tmp:
         written = [tmp / p.name for p in notebooks]
         for path in notebooks:
             shutil.copyfile(path, tmp / path.name)
         (tmp / "README.md").write_text(COURSE_README)
         written += [tmp / "README.md", *release(src, tmp / "student", warnings=warnings)]
-        os.chmod(tmp, 0o777 & ~current_umask())
-        if dest.exists():
-            shutil.rmtree(dest)
-        os.replace(tmp, dest)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return [dest / p.relative_to(tmp) for p in written]
