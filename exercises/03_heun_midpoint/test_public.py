@@ -10,7 +10,7 @@ from mslab.state import State
 
 MODULE = "heun_midpoint"
 EXPECTED = Expected(__file__)  # the answers of steps with slopes at the wrong times (expected.json)
-DT = 0.01  # the step on the moving chain (the key in tools/ reads it here)
+DT = 0.01  # the step on the moving chain (defined once)
 
 
 def pair(out, shape):

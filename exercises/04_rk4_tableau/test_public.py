@@ -20,7 +20,7 @@ def weights_hint(b):
     if np.allclose(np.sort(b), np.sort(RK4.b)):
         return "the weights misordered: the two middle stages count twice as much as the first and last"
     if np.allclose(b, 0.25):
-        return "equal weights: the two middle stages count twice as much as the first and last"
+        return "equal weights: RK4's four stages do not count equally"
     return None
 
 
@@ -30,7 +30,7 @@ def moving(prob, seed):
 
 
 def damped_chain():
-    """The RK4 test's problem, start velocity and step (the key in tools/ reads them here)."""
+    """The RK4 test's problem, start velocity and step (defined once)."""
     prob = problem("chain", n=5, dim=2, stiffness=60.0, gamma=0.2, sag=0.3)
     return prob, moving(prob, 41), 0.01
 

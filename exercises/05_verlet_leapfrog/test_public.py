@@ -9,7 +9,7 @@ from mslab.grading.problems import problem
 
 MODULE = "verlet_leapfrog"
 EXPECTED = Expected(__file__)  # the answers of wrong start-ups and steps (expected.json)
-DT = 0.01  # the step of every test (the key in tools/ reads it here)
+DT = 0.01  # the step of every test (defined once)
 
 
 def start_state(seed=3):

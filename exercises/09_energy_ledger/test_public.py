@@ -1,4 +1,4 @@
-"""Public tests of exercise 09 (run them: ``pytest exercises/09_energy_ledger``)."""
+"""Public tests of exercise 09 (run them from the folder above: ``pytest 09_energy_ledger``)."""
 
 import numpy as np
 import pytest

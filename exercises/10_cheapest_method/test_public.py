@@ -1,4 +1,4 @@
-"""Public tests of exercise 10 (run them: ``pytest exercises/10_cheapest_method``)."""
+"""Public tests of exercise 10 (run them from the folder above: ``pytest 10_cheapest_method``)."""
 
 import pytest
 

@@ -1,4 +1,4 @@
-"""Public tests of exercise 11 (run them: ``pytest exercises/11_shear_bend_springs``)."""
+"""Public tests of exercise 11 (run them from the folder above: ``pytest 11_shear_bend_springs``)."""
 
 import numpy as np
 import pytest

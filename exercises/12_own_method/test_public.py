@@ -1,4 +1,4 @@
-"""Public tests of exercise 12 (run them: ``pytest exercises/12_own_method``)."""
+"""Public tests of exercise 12 (run them from the folder above: ``pytest 12_own_method``)."""
 
 from fractions import Fraction as Fr
 
@@ -14,7 +14,7 @@ from mslab.state import State
 
 MODULE = "own_method"
 EXPECTED = Expected(__file__)  # the answers of known mistakes (expected.json)
-DT = 0.01  # the step of the rk3 test (the key in tools/ reads it here)
+DT = 0.01  # the step of the rk3 test (defined once)
 
 KUTTA3 = (np.array([[0, 0, 0], [0.5, 0, 0], [-1, 2, 0]], dtype=float), np.array([1 / 6, 2 / 3, 1 / 6]))
 HEUN3 = (np.array([[0, 0, 0], [1 / 3, 0, 0], [0, 2 / 3, 0]], dtype=float), np.array([0.25, 0.0, 0.75]))

@@ -49,9 +49,8 @@ python -m pytest 03_heun_midpoint          # one exercise
 python -m pytest .                         # all of them
 ```
 
-Use the same `python` for both (`python3` or `py` where `python` is another one; in the
-terminal of `make lab` it is the one of `.venv`). A bare `pytest` may belong to another
-Python, which then stops with "No module named 'mslab'".
+Use the same `python` for both (`python3` or `py` where `python` is another one). A bare
+`pytest` may belong to another Python, which then stops with "No module named 'mslab'".
 
 ## How you are graded
 

@@ -224,8 +224,10 @@ def run_exercise(job: dict, ex: dict) -> dict:
             return all((tests_dir / n).read_text() == t for n, t in ex["tests"].items())
 
         plugin.tamper_check = unchanged
+        # tests in file order (never shuffled by a plugin: a test group shares one sandbox)
         args = [str(tests_dir), "-q", "-c", str(ini), "--rootdir", str(tests_dir), "--noconftest",
                 "--confcutdir", str(tests_dir), "--import-mode=importlib", "-p", "no:cacheprovider",
+                "-p", "no:randomly",
                 "-o", "python_files=test_*.py", "-o", "addopts=", "-o", "console_output_style=classic"]
         try:
             pytest.main(args, plugins=[plugin])
