@@ -105,3 +105,37 @@ def test_a_graded_file_cannot_reach_the_trusted_problem(tmp_path, mode):
     assert honest.total == honest.max_points > 0
     assert cheat.total == 0.0, [(t.test, t.reason) for t in cheat.tests if t.passed]
     assert all(not t.grader_fault for t in cheat.tests)
+
+
+#: exercise 04 with rk_step honest and rk4_tableau returning the last four-stage tableau it was handed
+KEEPER = (SOURCE / "04_rk4_tableau" / "rk_tableau.py").read_text().replace(
+    "def rk_step(", "_KEPT = []\n\n\ndef rk_step(", 1) + '''
+
+_honest_rk_step = rk_step
+
+
+def rk_step(x, v, accel, dt, A, b):
+    if len(b) == 4:
+        _KEPT.append((A.copy(), b.copy()))
+    return _honest_rk_step(x, v, accel, dt, A, b)
+
+
+def rk4_tableau():
+    if not _KEPT:
+        raise NotImplementedError
+    A, b = _KEPT[-1]
+    return A, b, A.sum(axis=1)
+'''
+
+
+def test_no_test_hands_over_what_a_later_test_of_its_group_asks_for(tmp_path):
+    """Outside check: exercise 04's hidden tests handed RK4's tableau to rk_step before asking for it."""
+    folder = tmp_path / "class" / "keeper" / "04_rk4_tableau"
+    folder.mkdir(parents=True)
+    (folder / "rk_tableau.py").write_text(KEEPER)
+    (result,) = grade([tmp_path / "class"], source=SOURCE, jobs=1, only=["04_rk4_tableau"])
+    (ex,) = result.exercises
+    tableau_tests = [t for t in ex.tests if "rk4_tableau" in t.test]
+    assert len(tableau_tests) == 2 and not any(t.passed for t in tableau_tests), \
+        [(t.test, t.passed) for t in tableau_tests]
+    assert any(t.passed for t in ex.tests if "rk_step" in t.test)  # the honest part still scores
