@@ -41,8 +41,25 @@ from benchmarks.frame_loop import DT, SUBSTEPS, frame_cloth  # noqa: E402
 from benchmarks.suite import machine  # noqa: E402
 
 
+def table_without_gaps(springs) -> tuple:  # noqa: ANN001
+    """``springs``' kernel parameters as before gap springs: batches, runs, flags (10 entries)."""
+    from mslab.effects.spring_batches import batches, run_flags, segments
+
+    order, ranges, phases = batches(springs.i, springs.j, springs.n)
+    i, j = springs.i[order], springs.j[order]
+    k, c = springs.stiffness[order], springs.damping[order]
+    bounds, run, batch_segments = segments(i, j, ranges)
+    return (i, j, k, springs.rest_length[order], c, int(springs.dissipative), bounds,
+            run_flags(bounds, run, k, c), batch_segments, phases)
+
+
 def old_springs(rev: str, folder: Path) -> type:
-    """A subclass of ``Springs`` whose compiled kernel is revision ``rev``'s ``spring_kernel``."""
+    """A subclass of ``Springs`` whose compiled kernel is revision ``rev``'s ``spring_kernel``.
+
+    A kernel from before gap springs (no parameter ``gaps``) gets the table it was written for.
+    """
+    import inspect
+
     from mslab.effects import Springs
 
     source = subprocess.run(["git", "show", f"{rev}:mslab/effects/spring_kernels.py"], cwd=HERE.parent,
@@ -54,7 +71,10 @@ def old_springs(rev: str, folder: Path) -> type:
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module  # the generated loop imports the kernel by its module's name
     spec.loader.exec_module(module)
-    return type("SpringsBefore", (Springs,), {"kernel": staticmethod(module.spring_kernel)})
+    members = {"kernel": staticmethod(module.spring_kernel)}
+    if "gaps" not in inspect.signature(module.spring_kernel).parameters:
+        members["kernel_params"] = lambda self: table_without_gaps(self)
+    return type("SpringsBefore", (Springs,), members)
 
 
 def compare(before: type, n: int, dtype: str, repeats: int) -> dict:
@@ -71,7 +91,7 @@ def compare(before: type, n: int, dtype: str, repeats: int) -> dict:
             springs.__class__ = before
         sims[name] = mslab.Simulation(scene, "symplectic_euler", dt=DT, backend="numba", threads=1,
                                       dtype=dtype, check_stability=False)
-    m = springs.kernel_params()[0].size
+    m = springs.i.size
     floor = floor_kernel()
     a = np.random.default_rng(0).uniform(0.5, 2.0, m).astype(dtype)
     out = np.empty_like(a)

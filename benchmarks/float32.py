@@ -75,7 +75,7 @@ def compare(n: int, repeats: int) -> dict:
     from mslab.effects import Springs
 
     scene = frame_cloth(n)
-    m = next(e for e in scene.system.effects if isinstance(e, Springs)).kernel_params()[0].size
+    m = next(e for e in scene.system.effects if isinstance(e, Springs)).i.size
     sims = {d: mslab.Simulation(scene, "symplectic_euler", dt=DT, backend="numba", threads=1, dtype=d,
                                 check_stability=False) for d in ("float64", "float32")}
     defaults = {d: mslab.Simulation(scene, "symplectic_euler", dt=DT, backend="numba", dtype=d,

@@ -117,7 +117,8 @@ def warp_stepper(wp, x0, v0, springs, gravity, inv_mass, dt: float):
     v = wp.array(v0, dtype=wp.vec3d, device=dev)
     fg = wp.array(gravity.kernel_params()[0], dtype=wp.vec3d, device=dev)
     f = wp.array(gravity.kernel_params()[0], dtype=wp.vec3d, device=dev)
-    bi, bj, bk, brest = springs.kernel_params()[:4]  # mslab's batch order: the same sums
+    params = springs.kernel_params()  # mslab's batch order without its gap springs: the same sums
+    bi, bj, bk, brest = (np.delete(a, params[10]) for a in params[:4])
     i = wp.array(bi.astype(np.int32), dtype=wp.int32, device=dev)
     j = wp.array(bj.astype(np.int32), dtype=wp.int32, device=dev)
     k = wp.array(bk, dtype=f64, device=dev)
@@ -179,7 +180,7 @@ def kernel_limit(runner, x, v, repeats: int) -> dict:
     mod, params, kernels = runner.model.module, runner.model.params, runner.model.kernels
     n = next(q for q, kern in enumerate(kernels) if kern.__name__ == "spring_kernel")
     kern = getattr(mod, f"_k{n}")
-    m = params[n][0].size
+    m = params[n][0].size - params[n][10].size  # springs (not gap springs)
     f = np.zeros_like(x)
     floor = _floor_kernel()
     a = np.random.default_rng(0).uniform(0.5, 2.0, m)

@@ -308,9 +308,11 @@ def test_index_parameters_are_narrowed_without_changing_values():
     scene = generators.cloth(6, 6)
     springs = next(e for e in scene.system.effects if e.name == "springs")
     model = fast.ForceModel(scene.system)
-    i, j = model.params[[k.__name__ for k in model.kernels].index("spring_kernel")][:2]
-    assert i.dtype == j.dtype == np.uint32
-    assert np.array_equal(i, springs.i) and np.array_equal(j, springs.j)
+    params = model.params[[k.__name__ for k in model.kernels].index("spring_kernel")]
+    i, j, gaps = params[0], params[1], params[10]
+    assert i.dtype == j.dtype == gaps.dtype == np.uint32
+    assert gaps.size > 0  # the cloth's rows joined by gap springs; the springs are the others
+    assert np.array_equal(np.delete(i, gaps), springs.i) and np.array_equal(np.delete(j, gaps), springs.j)
     signed = _param(np.array([-1, 2**31 - 1]))
     assert signed.dtype == np.int32 and signed.tolist() == [-1, 2**31 - 1]
     assert _param(np.array([0, 2**32 - 1])).dtype == np.uint32

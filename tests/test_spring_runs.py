@@ -4,10 +4,12 @@
 ``(a + s, b + s)``, ``b > a``) and plain segments; :func:`mslab.effects.spring_kernels.spring_batch`
 sums a run in three vectorisable loops. The claim checked here is exact: for any springs (runs
 of every length, either orientation, zero-length springs, repeated particles, random pairs),
-the kernel with runs returns the same force bits as the same kernel told that nothing is a run
-(every spring through ``spring_range`` in scene order: the loop the runs replaced). The
-dissipated power, summed in eight lanes within a run, differs from the plain running sum by
-round-off only: two sums of the same m non-negative terms differ by at most 2 m eps times the sum.
+the kernel with runs, rows joined by gap springs (:func:`mslab.effects.spring_batches.gap_springs`),
+returns the same force bits as the same kernel told that nothing is a run and given the table
+without gap springs (every spring through ``spring_range`` in scene order: the loop the runs
+replaced). The dissipated power, summed in eight lanes within a run, differs from the plain
+running sum by round-off only: two sums of the same m non-negative terms (and a zero for each
+gap spring) differ by at most 2 m' eps times the sum, m' the number of terms.
 """
 
 from __future__ import annotations
@@ -18,7 +20,16 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mslab.effects import Springs
-from mslab.effects.spring_batches import MAX_RUN, MIN_RUN, SAME_STIFFNESS, batches, run_flags, segments
+from mslab.effects.spring_batches import (
+    MAX_GAP,
+    MAX_RUN,
+    MIN_RUN,
+    SAME_STIFFNESS,
+    batches,
+    gap_springs,
+    run_flags,
+    segments,
+)
 from mslab.effects.spring_kernels import spring_kernel
 from mslab.fast.model import _param
 from mslab.jit import compiled
@@ -41,6 +52,10 @@ def spring_table(rng: np.random.Generator, n: int, pieces: int) -> tuple[np.ndar
                 d = 0  # zero offset: i == j, a spring of one particle
             a0 = int(rng.integers(max(0, -d), n - max(0, d) - length)) if n - abs(d) > length else 0
             a = a0 + np.arange(length)
+            if kind == 1:  # rows of a mesh: a few particles skipped now and then (gap springs join them)
+                jumps = np.where(rng.random(length) < 0.05, rng.integers(2, MAX_GAP + 3, length), 1)
+                a = a0 + np.cumsum(jumps)
+                a = a[a < n - max(0, d)]
             b = a + d
             ok = (a >= 0) & (a < n) & (b >= 0) & (b < n)
             a, b = a[ok], b[ok]
@@ -61,7 +76,6 @@ def test_runs_give_the_plain_loops_bits(seed, dim, damped, pieces, parallel, uni
     sizes = {"min_parallel": 64, "per_batch": 256} if parallel else {}
     order, ranges, phases = batches(i, j, n, **sizes)
     i, j = i[order], j[order]
-    bounds, run, batch_segments = segments(i, j, ranges)
     x = rng.normal(size=(n, dim))
     x[j[: m // 7]] = x[i[: m // 7]]  # some springs of zero length
     v = rng.normal(size=(n, dim))
@@ -70,16 +84,22 @@ def test_runs_give_the_plain_loops_bits(seed, dim, damped, pieces, parallel, uni
     if uniform:  # one stiffness and damping (a mesh's rows), a few springs apart: runs held in registers
         k, c = np.full(m, k[0]), np.full(m, c[0])
         k[:: max(1, m // 3)] = 7.0
-        run = run_flags(bounds, run, k, c)
     kernel = compiled(spring_kernel)
-    params = [_param(p) for p in (i, j, k, rest, c, int(damped), bounds, run, batch_segments, phases)]
+    plain = (i, j, k, rest, c, int(damped), *segments(i, j, ranges), phases, np.zeros(0, np.int64))
+    take, step, ranges_g = gap_springs(i, j, ranges, phases)  # rows joined by gap springs
+    ig, jg, kg, cg = i[take] + step, j[take] + step, k[take], c[take]
+    bounds, run, batch_segments = segments(ig, jg, ranges_g)
+    run = run_flags(bounds, run, kg, cg)
+    joined = (ig, jg, kg, rest[take], cg, int(damped), bounds, run, batch_segments, phases,
+              np.flatnonzero(step))
     f_runs = rng.normal(size=(n, dim))  # forces already there (gravity): added to, in order
     f_plain = f_runs.copy()
-    p_runs = kernel(x, v, f_runs, *params)
+    p_runs = kernel(x, v, f_runs, *[_param(p) for p in joined])
+    params = [_param(p) for p in plain]
     params[7] = np.zeros_like(params[7])  # nothing is a run: every spring through spring_range
     p_plain = kernel(x, v, f_plain, *params)
     assert np.array_equal(f_runs, f_plain)
-    assert abs(p_runs - p_plain) <= 2 * m * np.finfo(float).eps * p_plain
+    assert abs(p_runs - p_plain) <= 2 * take.size * np.finfo(float).eps * p_plain
     assert (p_runs == p_plain) or damped and dim == 3  # only a damped run sums in lanes
     assert np.all(np.isfinite(f_runs))
 
@@ -116,9 +136,9 @@ def test_a_cloth_is_all_runs():
     """The default path reaches the vectorised loop: a 64 x 64 cloth's springs all lie in runs."""
     scene = generators.cloth(64, 64)
     springs = next(e for e in scene.system.effects if isinstance(e, Springs))
-    *_, bounds, run, batch_segments, phases = springs.kernel_params()
+    *_, bounds, run, batch_segments, phases, gaps = springs.kernel_params()
     in_runs = int(np.sum(np.diff(bounds)[run != 0]))
-    assert in_runs == len(springs.i)
+    assert in_runs == len(springs.i) + gaps.size
     assert np.all(run & SAME_STIFFNESS)  # each row has one stiffness and damping (issue 38 item 1)
 
 
@@ -190,3 +210,58 @@ def test_lane_sum_adds_in_its_stated_order(dtype, n):
         for s in range(n - 1, -1, -1):
             backwards += float(values[s])
         assert backwards != expected  # the data can tell one order from another
+
+
+def cloth_tables(n: int) -> tuple[tuple, tuple]:
+    """A cloth's kernel parameters (rows joined by gap springs) and the same springs without them."""
+    springs = next(e for e in generators.cloth(n, n, damping=2.0).system.effects if isinstance(e, Springs))
+    joined = springs.kernel_params()
+    order, ranges, phases = batches(springs.i, springs.j, springs.n)
+    i, j = springs.i[order], springs.j[order]
+    k, c = springs.stiffness[order], springs.damping[order]
+    bounds, run, batch_segments = segments(i, j, ranges)
+    plain = (i, j, k, springs.rest_length[order], c, joined[5], bounds, run_flags(bounds, run, k, c),
+             batch_segments, phases, np.zeros(0, np.int64))
+    return joined, plain
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_gap_springs_join_a_cloths_rows_and_exert_nothing(dtype):
+    """A 64 x 64 cloth's 262 rows become 24 runs; the forces keep their bits, the power its value.
+
+    The gap springs must be left out: the same table with ``gaps`` empty (their forces added
+    like a real spring's) changes the forces, so the check can fail.
+    """
+    joined, plain = cloth_tables(64)
+    gaps = joined[10]
+    assert gaps.size == 313 and np.diff(joined[6]).size == 24 and np.diff(plain[6]).size == 262
+    i, j = joined[0].astype(np.int64), joined[1].astype(np.int64)
+    for before in (gaps - 1, gaps + 1):  # each continues a row: (a + s, b + s) between two of its springs
+        assert np.all(np.abs(i[gaps] - i[before]) == 1) and np.all(j[gaps] - i[gaps] == j[before] - i[before])
+    rng = np.random.default_rng(3)
+    x = (generators.cloth(64, 64).state0.x + rng.normal(scale=0.01, size=(4096, 3))).astype(dtype)
+    v = rng.normal(size=x.shape).astype(dtype)
+    f0 = rng.normal(size=x.shape).astype(dtype)
+    kernel = compiled(spring_kernel)
+    out = {}
+    for name, table in (("joined", joined), ("plain", plain), ("gaps as springs", joined[:10] + (gaps[:0],))):
+        f = f0.copy()
+        out[name] = f, kernel(x, v, f, *[_param(p, dtype) for p in table])
+    assert np.array_equal(out["joined"][0], out["plain"][0])
+    bound = 2 * joined[0].size * np.finfo(float).eps * out["plain"][1]
+    assert abs(out["joined"][1] - out["plain"][1]) <= bound
+    assert not np.array_equal(out["gaps as springs"][0], out["plain"][0])
+
+
+def test_gap_springs_only_where_one_thread_runs_the_batch():
+    """A batch of a parallel phase gets none (its gap springs could touch another batch's particles)."""
+    i = np.arange(200, dtype=np.int64)
+    i = i[i % 10 != 9]  # rows of 9 springs (a + s, a + s + 1), one particle skipped between rows
+    j = i + 1
+    take, step, ranges = gap_springs(i, j, np.array([0, 90, 180]), np.array([0, 1, 2]))
+    assert np.array_equal(take[step == 0], np.arange(i.size))  # every spring, in order
+    skipped = np.arange(9, 190, 10)
+    assert np.array_equal((i[take] + step)[step > 0], skipped[skipped != 99])  # not after a batch's last
+    assert ranges.tolist() == [0, 99, 198]
+    take, step, ranges = gap_springs(i, j, np.array([0, 90, 180]), np.array([0, 2]))  # both in one phase
+    assert not np.any(step) and ranges.tolist() == [0, 90, 180]

@@ -144,6 +144,61 @@ def segments(i: np.ndarray, j: np.ndarray, ranges: np.ndarray, min_run: int = MI
     return bounds, run, np.searchsorted(bounds[:-1], ranges).astype(np.int64)
 
 
+#: most gap springs that join two rows (a mesh's rows of bend springs stop two particles short)
+MAX_GAP = 3
+
+
+def gap_springs(i: np.ndarray, j: np.ndarray, ranges: np.ndarray, phases: np.ndarray,
+                max_gap: int = MAX_GAP) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Join rows of springs into longer runs by *gap springs*; return ``(take, step, ranges)``.
+
+    A mesh generator lists a row's springs ``(a + s, b + s)`` and then the next row's, which
+    starts a few particles further on: the run breaks at every row's end, and a 64 x 64 cloth
+    is 262 runs of about 63 springs, each paying a run's set-up (a tenth of its time,
+    ``benchmarks/RESULTS.md``). Where two consecutive springs of a batch have the same offset
+    ``b - a > 0`` and ``i`` jumps by ``2 .. max_gap + 1``, the springs between them that the
+    mesh does not have (``(a + s, b + s)`` for the skipped ``s``) are inserted as *gap
+    springs*: they exert no force. The kernel sets their pair forces to ``+0.0``, which leaves
+    every force entry as it is: ``f + 0.0`` and ``f - 0.0`` are ``f`` unless ``f`` is ``-0.0``,
+    and no entry is: it starts from the constant forces, formed as ``0.0 + ...``, and an IEEE
+    sum or difference is ``-0.0`` only where its first operand already is. Their powers are
+    ``+0.0`` too (the dissipated power changes by round-off: another order of its sum). The
+    rows then form one run (a 64 x 64 cloth: 24 runs instead of 262, 1.3 % gap springs), and
+    each particle still receives its springs' forces in the same order: the forces are
+    bitwise those of the table without gap springs.
+
+    A gap spring touches particles no other spring of its batch may touch, so only a batch that
+    is alone in its phase (run on one thread: every batch of a scene below
+    :data:`MIN_SPRINGS_PARALLEL`) gets them; a batch of a parallel phase keeps its table.
+
+    Returns, per spring of the new table, ``take`` (the spring of ``i, j`` it copies: its
+    stiffness, rest length and damping; a gap spring copies the spring before it) and ``step``
+    (0, or ``u`` for the gap spring ``(i + u, j + u)`` of that spring), and the new batch
+    offsets. Cost ``O(n_springs)``, once per scene.
+    """
+    i = np.asarray(i, dtype=np.int64)
+    j = np.asarray(j, dtype=np.int64)
+    ranges = np.asarray(ranges, dtype=np.int64)
+    m = i.size
+    gaps = np.zeros(m, dtype=np.int64)  # gap springs after spring q
+    if m > 1:
+        jump = i[1:] - i[:-1]
+        offset = j - i
+        fill = (offset[1:] == offset[:-1]) & (offset[:-1] > 0) & (jump >= 2) & (jump <= max_gap + 1)
+        alone = np.zeros(m, dtype=bool)  # springs of a batch that is alone in its phase
+        for p in range(phases.size - 1):
+            if phases[p + 1] - phases[p] == 1:
+                alone[ranges[phases[p]]:ranges[phases[p] + 1]] = True
+        last = np.zeros(m, dtype=bool)  # the last spring of a batch: no gap after it
+        last[np.clip(ranges[1:] - 1, 0, m - 1)] = True
+        fill &= alone[:-1] & ~last[:-1]
+        gaps[:-1] = np.where(fill, jump - 1, 0)
+    take = np.repeat(np.arange(m), 1 + gaps)
+    step = np.arange(take.size) - np.repeat(np.cumsum(1 + gaps) - (1 + gaps), 1 + gaps)
+    before = np.concatenate([[0], np.cumsum(gaps)])  # gap springs before spring q
+    return take, step, ranges + before[np.minimum(ranges, m)]
+
+
 #: bits of a segment's ``run`` entry (:func:`run_flags`): a run; a run whose springs have one
 #: stiffness and one damping
 RUN, SAME_STIFFNESS = 1, 2

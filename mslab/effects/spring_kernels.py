@@ -20,7 +20,7 @@ from mslab.lanes import eight_lanes
 def spring_kernel(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: np.ndarray,
                   stiffness: np.ndarray, rest_length: np.ndarray, damping: np.ndarray,
                   damped: int, bounds: np.ndarray, run: np.ndarray, batches: np.ndarray,
-                  phases: np.ndarray) -> float:
+                  phases: np.ndarray, gaps: np.ndarray) -> float:
     """Add the spring forces to ``f`` (n_particles, dim) in place; return the dissipated power.
 
     The springs come in conflict-free batches (:mod:`mslab.effects.spring_batches`): batch
@@ -30,7 +30,9 @@ def spring_kernel(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j:
     batches of a phase run on all threads (numba's ``prange``); each is summed by
     :func:`spring_batch` in its own order, and the powers of the batches are added in
     batch order, so the result is bitwise the same for any number of threads. A phase of one
-    batch runs on the calling thread (no parallel launch: small scenes pay nothing).
+    batch runs on the calling thread (no parallel launch: small scenes pay nothing). The
+    springs ``gaps`` (ascending) are gap springs (:func:`mslab.effects.spring_batches.gap_springs`):
+    they join rows into runs and exert no force.
 
     Cost: one square root and one division per spring; work ``O(n_springs)``, span
     ``O(n_springs / n_threads)`` plus the springs of the serial phases.
@@ -43,11 +45,11 @@ def spring_kernel(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j:
         if last - first > 1:
             for r in prange(first, last):
                 powers[r] = spring_batch(x, v, f, i, j, stiffness, rest_length, damping, damped,
-                                         bounds, run, batches[r], batches[r + 1])
+                                         bounds, run, gaps, batches[r], batches[r + 1])
         else:
             for r in range(first, last):
                 powers[r] = spring_batch(x, v, f, i, j, stiffness, rest_length, damping, damped,
-                                         bounds, run, batches[r], batches[r + 1])
+                                         bounds, run, gaps, batches[r], batches[r + 1])
     power = 0.0
     for r in range(n_batches):
         power += powers[r]
@@ -56,7 +58,7 @@ def spring_kernel(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j:
 
 def spring_batch(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: np.ndarray,
                  stiffness: np.ndarray, rest_length: np.ndarray, damping: np.ndarray, damped: int,
-                 bounds: np.ndarray, run: np.ndarray, first: int, last: int) -> float:
+                 bounds: np.ndarray, run: np.ndarray, gaps: np.ndarray, first: int, last: int) -> float:
     """Add the forces of segments ``first:last`` (one batch) to ``f``; return their dissipated power.
 
     Plain segments (and every segment in one or two dimensions) go through
@@ -70,16 +72,14 @@ def spring_batch(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: 
     batch. A run's powers are summed by :func:`lane_sum` (round-off apart from a sum in spring
     order; the same on every machine and thread count). A damped run whose flags
     (:func:`mslab.effects.spring_batches.run_flags`) say it has one stiffness and one damping
-    keeps them in registers (the same bits, fewer loads). The pair loop runs to a multiple of 8
-    springs where the particles and table entries after the run exist: the extra pairs are
-    computed and dropped, and the vectorised loop leaves no springs to a scalar loop (up to 7,
-    ~10 ns each, on rows of 63 and 127 springs).
+    keeps them in registers. The pair loop runs to a multiple of 8 springs where the particles
+    and table entries after the run exist: the extra pairs are computed and dropped (no scalar
+    remainder loop, ~10 ns a spring). Gap springs (``gaps``) are left out: see
+    :func:`plain_segment` and :func:`zero_gaps`.
 
-    A run is no call of its own: a compiled call with arrays costs numba's reference counting (a
-    call and an atomic operation per array and end, 8 arrays), about 120 ns a run, a third of a
-    63-spring row's time in cache (``benchmarks/RESULTS.md``). No array view is made per run
-    either: ``x``, ``v``, ``f`` are viewed flat once per batch and indexed by unsigned offsets
-    (numba then adds no test for negative indices, which would stop the vectoriser).
+    A run is no call of its own (a compiled call with arrays costs numba's reference counting,
+    ~120 ns), and makes no array view: ``x``, ``v``, ``f`` are viewed flat once per batch and
+    indexed by unsigned offsets (numba then adds no test for negative indices).
     """
     runs = x.shape[1] == 3
     longest = 0  # the longest run (at most about MAX_RUN springs): the buffers' size
@@ -91,10 +91,12 @@ def spring_batch(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: 
     xs, vs, fs = x.reshape(x.size), v.reshape(v.size), f.reshape(f.size)  # flat views, once
     zero = stiffness.dtype.type(0.0)
     power = 0.0
+    n_gaps = gaps.shape[0]
+    g = np.searchsorted(gaps, bounds[first]) if first < last else n_gaps  # the next gap spring
     for s in range(first, last):
         if not (runs and run[s]):
-            power = spring_range(x, v, f, i, j, stiffness, rest_length, damping, damped, bounds[s],
-                                 bounds[s + 1], power)
+            power, g = plain_segment(x, v, f, i, j, stiffness, rest_length, damping, damped, gaps, g,
+                                     bounds[s], bounds[s + 1], power)
             continue
         q0 = np.uint64(bounds[s])  # spring q0 + t joins particles a + t and b + t
         m = np.int64(bounds[s + 1]) - np.int64(bounds[s])
@@ -119,6 +121,8 @@ def spring_batch(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: 
             for t in range(pad):
                 q = np.uint64(t)
                 run_pair(xs, xs, xa, xb, q, stiffness[q0 + q], rest_length[q0 + q], zero, 0, pair, rates)
+        if g < n_gaps and np.int64(gaps[g]) < np.int64(q0) + m:  # (no call for a run without gaps)
+            g = zero_gaps(pair, rates, damped, gaps, g, q0, m)
         if damped:
             power += lane_sum(rates, m)
         # f[a + t] += pair[t] and f[b + t] -= pair[t], the j end first where a particle has both ends
@@ -132,6 +136,39 @@ def spring_batch(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: 
         for t in range(max(shift, size), shift + size):  # a j end only
             fs[xa + np.uint64(t)] -= pair[np.uint64(t - shift)]
     return power
+
+
+def plain_segment(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: np.ndarray,
+                  stiffness: np.ndarray, rest_length: np.ndarray, damping: np.ndarray, damped: int,
+                  gaps: np.ndarray, g: int, start: int, stop: int, power: float) -> tuple[float, int]:
+    """:func:`spring_range` over springs ``start:stop`` around their gap springs; return ``(power, g)``.
+
+    ``gaps[g]`` is the first gap spring at or after ``start``; ``g`` returned, the first after ``stop``.
+    """
+    lo = np.int64(start)
+    while g < gaps.shape[0] and np.int64(gaps[g]) < np.int64(stop):
+        power = spring_range(x, v, f, i, j, stiffness, rest_length, damping, damped, lo, gaps[g], power)
+        lo = np.int64(gaps[g]) + 1
+        g += 1
+    return spring_range(x, v, f, i, j, stiffness, rest_length, damping, damped, lo, stop, power), g
+
+
+def zero_gaps(pair: np.ndarray, rates: np.ndarray, damped: int, gaps: np.ndarray, g: int, q0: int,
+              m: int) -> int:
+    """Set the pair forces and powers of run ``q0 : q0 + m``'s gap springs to ``+0.0``; return the next ``g``.
+
+    ``gaps[g]`` is the run's first gap spring. Adding ``+0.0`` leaves every force entry as it
+    is (:func:`mslab.effects.spring_batches.gap_springs`), whatever the gap spring's ends.
+    """
+    zero = pair.dtype.type(0.0)
+    while g < gaps.shape[0] and np.int64(gaps[g]) < np.int64(q0) + m:
+        t = np.uint64(gaps[g]) - np.uint64(q0)
+        e = np.uint64(3) * t
+        pair[e] = pair[e + np.uint64(1)] = pair[e + np.uint64(2)] = zero
+        if damped:
+            rates[t] = zero
+        g += 1
+    return g
 
 
 def spring_range(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: np.ndarray,

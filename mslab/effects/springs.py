@@ -15,7 +15,7 @@ import numpy as np
 from mslab.effects.base import Body, BuildContext, Builder, Effect, HookeSprings
 from mslab.effects.registry import register
 from mslab.effects.schema import Key, check_keys
-from mslab.effects.spring_batches import batches, run_flags, segments
+from mslab.effects.spring_batches import batches, gap_springs, run_flags, segments
 from mslab.effects.spring_kernels import (
     scatter_pair_blocks,
     spring_energy_kernel,
@@ -279,20 +279,27 @@ class Springs(Effect):
     def kernel_params(self) -> tuple:
         """Return the parameters of :func:`spring_kernel` (after ``x, v, f``).
 
-        ``(i, j, stiffness, rest_length, damping, damped, bounds, run, batches, phases)``: the
-        spring arrays in the order of their conflict-free batches
-        (:func:`mslab.effects.spring_batches.batches`), each batch cut into runs and plain
-        segments (:func:`~mslab.effects.spring_batches.segments`), a run's entry in ``run``
-        telling whether it has one stiffness and damping
-        (:func:`~mslab.effects.spring_batches.run_flags`); computed once per effect.
+        ``(i, j, stiffness, rest_length, damping, damped, bounds, run, batches, phases, gaps)``:
+        the spring arrays in the order of their conflict-free batches
+        (:func:`mslab.effects.spring_batches.batches`), rows joined by gap springs (their
+        indices ``gaps``, ascending: no force; :func:`~mslab.effects.spring_batches.gap_springs`),
+        each batch cut into runs and plain segments
+        (:func:`~mslab.effects.spring_batches.segments`), a run's entry in ``run`` telling
+        whether it has one stiffness and damping (:func:`~mslab.effects.spring_batches.run_flags`);
+        computed once per effect. The springs themselves are :attr:`i`, :attr:`j`, ...:
+        ``np.delete(i, gaps)`` is a permutation of them.
         """
         if self._batched is None:
             order, ranges, phases = batches(self.i, self.j, self.n)
-            i, j = self.i[order], self.j[order]
+            take, step, ranges = gap_springs(self.i[order], self.j[order], ranges, phases)
+            order = order[take]
+            i, j = self.i[order] + step, self.j[order] + step
             bounds, run, batch_segments = segments(i, j, ranges)
             k, rest, c = self.stiffness[order], self.rest_length[order], self.damping[order]
             run = run_flags(bounds, run, k, c)
-            self._batched = (i, j, k, rest, c, int(self.dissipative), bounds, run, batch_segments, phases)
+            gaps = np.flatnonzero(step)
+            self._batched = (i, j, k, rest, c, int(self.dissipative), bounds, run, batch_segments, phases,
+                             gaps)
         return self._batched
 
     # -- scene description -----------------------------------------------------------------------
