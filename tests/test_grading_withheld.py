@@ -92,6 +92,23 @@ def test_only_exercises_that_hand_over_a_problem_get_the_file():
     assert all(hands[n] for n in ("02", "03", "04", "05", "06", "09", "12"))  # handed a problem
 
 
+@pytest.mark.parametrize("text, hands", [
+    ("from mslab.grading.problems import problem\n", True),
+    ("import mslab.grading.problems as p\n", True),
+    ("def test():\n    from mslab.grading.checks import step_order\n", True),
+    ("from mslab.grading import checks\n", True),
+    ("from mslab.grading.checks import close, require\n", False),
+    ("# a problem, step_order, swinging_spring: words in a comment\nX = 'problem'\n", False),
+    ("def broken(:\n", True),  # does not parse: the conservative answer
+])
+def test_a_test_hands_a_problem_only_by_importing_one(text, hands):
+    """Only an import counts (the earlier rule read any word "problem", in a comment too)."""
+    from mslab.grading.layout import Exercise, imports_problems
+
+    assert imports_problems(text) is hands
+    assert Exercise("01_x", Path("."), "x.py", tests={"test_public.py": text}).hands_problems is hands
+
+
 @pytest.mark.skipif(not MODES, reason="needs bubblewrap or unprivileged user namespaces")
 @pytest.mark.parametrize("mode", MODES)
 def test_a_graded_file_cannot_reach_the_trusted_problem(tmp_path, mode):

@@ -23,7 +23,9 @@ order of summation; ``tests/test_fast.py`` holds both to the numpy reference.)
 
 Each batch is then cut into *runs* (consecutive springs between consecutive particles, rows of
 a mesh) and plain stretches (:func:`segments`): a run's loop touches contiguous memory, so the
-compiler vectorises it, with the same sums in the same order.
+compiler vectorises it, with the same sums in the same order. In a batch that runs alone, the
+rows of a mesh are first joined into longer runs by *gap springs* (:func:`gap_springs`), which
+exert no force.
 
 Cost: ``O(n_springs log n_springs)`` once per scene (a stable sort), kept on the effect.
 """

@@ -69,23 +69,19 @@ def spring_batch(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: 
     powers into ``rates``), then ``+f_q`` goes into the ``i`` ends and ``-f_q`` into the ``j``
     ends, a particle with both receiving ``-f`` of spring ``p - b`` before ``+f`` of spring
     ``p - a``: in spring order, so the forces are bitwise those of :func:`spring_range` over the
-    batch. A run's powers are summed by :func:`lane_sum` (round-off apart from a sum in spring
-    order; the same on every machine and thread count). A damped run whose flags
-    (:func:`mslab.effects.spring_batches.run_flags`) say it has one stiffness and one damping
-    keeps them in registers. The pair loop runs to a multiple of 8 springs where the particles
-    and table entries after the run exist: the extra pairs are computed and dropped (no scalar
-    remainder loop, ~10 ns a spring). Gap springs (``gaps``) are left out: see
-    :func:`plain_segment` and :func:`zero_gaps`.
+    batch. A run's powers are summed by :func:`lane_sum` (the same on every machine and thread
+    count). A damped run with one stiffness and one damping (``run`` flags,
+    :func:`mslab.effects.spring_batches.run_flags`) keeps them in registers. The pair loop runs
+    to a multiple of 8 springs where the particles and table entries after the run exist (the
+    extra pairs are dropped: no scalar remainder loop). Gap springs (``gaps``) are left out:
+    see :func:`plain_segment` and :func:`zero_gaps`.
 
     A run is no call of its own (a compiled call with arrays costs numba's reference counting,
     ~120 ns), and makes no array view: ``x``, ``v``, ``f`` are viewed flat once per batch and
     indexed by unsigned offsets (numba then adds no test for negative indices).
     """
     runs = x.shape[1] == 3
-    longest = 0  # the longest run (at most about MAX_RUN springs): the buffers' size
-    for s in range(first, last):
-        if runs and run[s]:
-            longest = max(longest, np.int64(bounds[s + 1]) - np.int64(bounds[s]))
+    longest = longest_run(bounds, run, first, last) if runs else 0  # the buffers' size
     pair = np.empty(3 * (longest + 7), x.dtype)  # a run's pair forces (and up to 7 more, below)
     rates = np.empty(longest + 7 if damped else 0, x.dtype)  # a run's dissipated powers
     xs, vs, fs = x.reshape(x.size), v.reshape(v.size), f.reshape(f.size)  # flat views, once
@@ -95,8 +91,12 @@ def spring_batch(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: 
     g = np.searchsorted(gaps, bounds[first]) if first < last else n_gaps  # the next gap spring
     for s in range(first, last):
         if not (runs and run[s]):
-            power, g = plain_segment(x, v, f, i, j, stiffness, rest_length, damping, damped, gaps, g,
-                                     bounds[s], bounds[s + 1], power)
+            if g < n_gaps and np.int64(gaps[g]) < np.int64(bounds[s + 1]):
+                power, g = plain_segment(x, v, f, i, j, stiffness, rest_length, damping, damped, gaps, g,
+                                         bounds[s], bounds[s + 1], power)
+            else:
+                power = spring_range(x, v, f, i, j, stiffness, rest_length, damping, damped, bounds[s],
+                                     bounds[s + 1], power)
             continue
         q0 = np.uint64(bounds[s])  # spring q0 + t joins particles a + t and b + t
         m = np.int64(bounds[s + 1]) - np.int64(bounds[s])
@@ -136,6 +136,15 @@ def spring_batch(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: 
         for t in range(max(shift, size), shift + size):  # a j end only
             fs[xa + np.uint64(t)] -= pair[np.uint64(t - shift)]
     return power
+
+
+def longest_run(bounds: np.ndarray, run: np.ndarray, first: int, last: int) -> int:
+    """Return the number of springs of the longest run among segments ``first:last`` (0 if none)."""
+    longest = 0
+    for s in range(first, last):
+        if run[s]:
+            longest = max(longest, np.int64(bounds[s + 1]) - np.int64(bounds[s]))
+    return longest
 
 
 def plain_segment(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: np.ndarray,

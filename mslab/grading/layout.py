@@ -55,17 +55,46 @@ class Exercise:
     def hands_problems(self) -> bool:
         """Whether a test may hand the student a problem (then its sandbox gets ``problems.py``).
 
-        Read from the tests' text: a test that names no problem (``problem``, ``step_order``,
-        ``observed_order``, ``swinging_spring``) gets a sandbox without the file, whose spring
-        forces would be exercise 01's answer.
+        Read from the tests' imports (:func:`imports_problems`): a test module that imports
+        neither :mod:`mslab.grading.problems` nor a check that builds a problem gets a sandbox
+        without the file, whose spring forces would be exercise 01's answer. A word in a comment
+        or a string is no import.
         """
-        words = ("problem", "step_order", "observed_order", "swinging_spring")
-        return any(w in text for name, text in self.tests.items() if name.endswith(".py") for w in words)
+        return any(imports_problems(text) for name, text in self.tests.items() if name.endswith(".py"))
 
     @property
     def max_points(self) -> float:
         """Points the exercise's tests are worth."""
         return float(sum(self.points.values()))
+
+
+#: the checks of :mod:`mslab.grading.checks` that build a problem and hand it to student code
+HANDING_CHECKS = frozenset({"step_order", "observed_order", "swinging_spring", "*"})
+
+
+def imports_problems(source: str) -> bool:
+    """Whether a test module imports :mod:`mslab.grading.problems` or a check of :data:`HANDING_CHECKS`.
+
+    From its syntax tree (``import ...`` and ``from ... import ...`` anywhere in it), so a
+    comment or a string that names a problem counts for nothing; a whole-module import of
+    ``mslab.grading.checks`` counts (any check may then be called), and so does a module that
+    does not parse (the conservative answer).
+    """
+    try:
+        tree = ast.parse(source)
+    except SyntaxError:
+        return True
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import) and any(
+                a.name.startswith(("mslab.grading.problems", "mslab.grading.checks")) for a in node.names):
+            return True
+        if isinstance(node, ast.ImportFrom) and node.module:
+            names = {a.name for a in node.names}
+            if node.module.startswith("mslab.grading.problems") or (
+                    node.module == "mslab.grading" and names & {"problems", "checks", "*"}) or (
+                    node.module == "mslab.grading.checks" and names & HANDING_CHECKS):
+                return True
+    return False
 
 
 def default_source() -> Path | None:
