@@ -350,7 +350,7 @@ class Simulation:
 
     def _check_ledger(self) -> None:
         loop, system = self._loop, self.system
-        kinetic = float(system.kinetic_energy(loop.v))
+        kinetic = float(system.kinetic_energy(loop.v, self.compiled))
         total = kinetic + float(system.potential_energy(loop.x, self.compiled)) + loop.dissipated
         if system.driving:
             total -= float(system.external_work(loop.x, self._samples.x[0]))

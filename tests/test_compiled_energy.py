@@ -1,4 +1,4 @@
-"""The ledger check of a compiled run sums the springs' energy compiled: numpy's to round-off."""
+"""The ledger check of a compiled run sums the springs' and kinetic energy compiled: numpy's to round-off."""
 
 from __future__ import annotations
 
@@ -25,6 +25,25 @@ def test_compiled_energy_is_numpys_to_round_off(m, dim, seed):
     x[1] = x[0]  # a zero-length spring where the pair (0, 1) occurs
     exact = springs.energy(x)
     assert abs(springs.compiled_energy(x) - exact) <= 4 * m * np.finfo(float).eps * exact
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(1, 400), st.integers(1, 3), st.integers(0, 2**32 - 1))
+def test_compiled_kinetic_energy_is_numpys_to_round_off(n, dim, seed):
+    """Free particles only (a pinned one moving fast would change the sum: planted below), within
+    the model of summing n dim non-negative terms."""
+    from mslab.system import System
+
+    rng = np.random.default_rng(seed)
+    pinned = rng.random(n) < 0.2
+    system = System(rng.uniform(0.01, 10.0, n), pinned, [], dim)
+    v = rng.normal(0.0, 1.0, (n, dim))
+    exact = system.kinetic_energy(v)
+    bound = 4 * n * dim * np.finfo(float).eps * exact
+    assert abs(system.kinetic_energy(v, compiled=True) - exact) <= bound
+    if pinned.any():
+        v[pinned] = 1e3
+        assert abs(system.kinetic_energy(v, compiled=True) - exact) <= bound
 
 
 def test_a_compiled_runs_ledger_check_never_calls_numpys_energy(monkeypatch):
