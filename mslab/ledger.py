@@ -45,17 +45,20 @@ def physical_memory() -> float:
         return float("inf")
 
 
-def refuse_beyond_memory(n: int, shape: tuple) -> None:
+def refuse_beyond_memory(n: int, shape: tuple, what: str = "t_end, save_every",
+                         fix: str = "a shorter t_end") -> None:
     """ValueError when ``n`` saved samples of ``shape`` could never fit this machine's memory.
 
     Checked before any array exists: such an allocation may succeed on an overcommitting OS and
     then end the process when it is filled, with no message (a run must fail in one line).
+    ``what`` and ``fix`` name the arguments (a declared ``t_end``; an open-ended session's
+    :meth:`~mslab.simulation.Simulation.advance`).
     """
     need = n * (2 * xs_bytes(shape) + 7 * 8)  # positions, velocities; steps, d, K, U, W_ext, marks
     if need > physical_memory():
-        raise ValueError(f"t_end, save_every: the {n:.3g} saved samples would need {need / 2**30:.3g} GiB, "
+        raise ValueError(f"{what}: the {n:.3g} saved samples would need {need / 2**30:.3g} GiB, "
                          f"more than this machine's {physical_memory() / 2**30:.3g} GiB; use a larger "
-                         "save_every or a shorter t_end")
+                         f"save_every or {fix}")
 
 
 class Samples:
@@ -103,6 +106,12 @@ class Samples:
                 new[: self.k] = have[: self.k]
         self.steps = steps
         self.x, self.v, self.d, self._kinetic, self._potential, self._external = arrays
+
+    def refuse_beyond(self, stop: int) -> None:
+        """ValueError, before any step, when an open-ended session's samples up to ``stop`` cannot fit."""
+        if self.end is None and self.steps[-1] < stop:
+            refuse_beyond_memory(stop // self.save_every + 2, self.shape, "advance, save_every",
+                                 "fewer steps per session")
 
     def reserve(self, stop: int) -> None:
         """Make room for every sample up to step ``stop`` (a session of unknown length grows)."""

@@ -221,6 +221,7 @@ class Simulation:
         if self.end is not None and self.step + count > self.end:
             raise ValueError(f"the session ends at step {self.end} (t_end); {count} more steps from "
                              f"step {self.step} go beyond")
+        self._samples.refuse_beyond(self.step + count)  # (open-ended, save_every given: memory grows)
         if self.integrator.implicit:  # Newton's small solves: threads only cost time (mslab.threads)
             from mslab.threads import single_threaded_blas
 

@@ -115,3 +115,19 @@ def test_a_run_that_could_never_fit_in_memory_is_refused_before_any_array():
         mslab.Simulation(CHAIN, "euler", dt=0.01, t_end=1e12, backend="numpy", check_stability=False)
     with pytest.raises(ValueError, match="use a larger save_every"):
         mslab.simulate(CHAIN, "euler", dt=0.01, t_end=1e12, backend="numpy", check_stability=False)
+
+
+def test_an_open_ended_session_that_could_never_hold_its_samples_is_refused_before_a_step():
+    """An open-ended session given ``save_every`` grew its samples until the process was killed
+    (``advance(10**13)`` saves 1e13 states); now one ValueError before any step, the session
+    untouched and still usable."""
+    import pytest
+
+    sim = mslab.Simulation(CHAIN, "euler", dt=0.01, save_every=1, backend="numpy", check_stability=False)
+    with pytest.raises(ValueError, match=r"advance, save_every: .* GiB, more than this machine.*fewer steps"):
+        sim.advance(10**13)
+    assert sim.step == 0 and sim.trajectory.x.shape[0] == 1
+    sim.advance(10)
+    assert sim.step == 10 and sim.trajectory.x.shape[0] == 11
+    quiet = mslab.Simulation(CHAIN, "euler", dt=0.01, backend="numpy", check_stability=False)
+    assert quiet._samples.refuse_beyond(10**13) is None  # the default saves only the start: nothing to refuse

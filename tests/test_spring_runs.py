@@ -265,3 +265,15 @@ def test_gap_springs_only_where_one_thread_runs_the_batch():
     assert ranges.tolist() == [0, 99, 198]
     take, step, ranges = gap_springs(i, j, np.array([0, 90, 180]), np.array([0, 2]))  # both in one phase
     assert not np.any(step) and ranges.tolist() == [0, 90, 180]
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.integers(0, 50), max_size=30), st.integers(-1, 52))
+def test_first_at_least_is_searchsorted(values, value):
+    from mslab.effects.spring_kernels import first_at_least
+
+    ascending = np.sort(np.array(values, dtype=np.int64))
+    expected = int(np.searchsorted(ascending, value))
+    assert first_at_least(ascending, value) == expected
+    unsigned = max(value, 0)  # (the kernel's indices are uint32)
+    assert compiled(first_at_least)(ascending.astype(np.uint32), unsigned) == np.searchsorted(ascending, unsigned)

@@ -88,7 +88,7 @@ def spring_batch(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: 
     zero = stiffness.dtype.type(0.0)
     power = 0.0
     n_gaps = gaps.shape[0]
-    g = np.searchsorted(gaps, bounds[first]) if first < last else n_gaps  # the next gap spring
+    g = first_at_least(gaps, bounds[first]) if first < last else n_gaps  # the next gap spring
     for s in range(first, last):
         if not (runs and run[s]):
             if g < n_gaps and np.int64(gaps[g]) < np.int64(bounds[s + 1]):
@@ -136,6 +136,22 @@ def spring_batch(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: 
         for t in range(max(shift, size), shift + size):  # a j end only
             fs[xa + np.uint64(t)] -= pair[np.uint64(t - shift)]
     return power
+
+
+def first_at_least(values: np.ndarray, value: int) -> int:
+    """Return the first index of the ascending ``values`` whose value is ``>= value`` (binary search).
+
+    (``np.searchsorted``'s compiled code would make numba's cache load its numpy implementations,
+    linear algebra included, into every process that loads the stepping loop: ``tests/test_fast_load.py``.)
+    """
+    lo, hi = 0, values.shape[0]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if np.int64(values[mid]) < np.int64(value):
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
 
 
 def longest_run(bounds: np.ndarray, run: np.ndarray, first: int, last: int) -> int:
