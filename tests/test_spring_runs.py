@@ -276,4 +276,5 @@ def test_first_at_least_is_searchsorted(values, value):
     expected = int(np.searchsorted(ascending, value))
     assert first_at_least(ascending, value) == expected
     unsigned = max(value, 0)  # (the kernel's indices are uint32)
-    assert compiled(first_at_least)(ascending.astype(np.uint32), unsigned) == np.searchsorted(ascending, unsigned)
+    found = compiled(first_at_least)(ascending.astype(np.uint32), unsigned)
+    assert found == np.searchsorted(ascending, unsigned)
