@@ -305,7 +305,7 @@ def test_index_parameters_are_narrowed_without_changing_values():
     """Non-negative indices reach the kernels as uint32 (no test for negative indices), others signed."""
     from mslab.fast.model import _param
 
-    scene = generators.cloth(6, 6)
+    scene = generators.cloth(12, 12)  # rows of 11 springs: joined by gap springs (spring_batches.MIN_ROW)
     springs = next(e for e in scene.system.effects if e.name == "springs")
     model = fast.ForceModel(scene.system)
     params = model.params[[k.__name__ for k in model.kernels].index("spring_kernel")]

@@ -214,7 +214,12 @@ def test_lane_sum_adds_in_its_stated_order(dtype, n):
 
 def cloth_tables(n: int) -> tuple[tuple, tuple]:
     """A cloth's kernel parameters (rows joined by gap springs) and the same springs without them."""
-    springs = next(e for e in generators.cloth(n, n, damping=2.0).system.effects if isinstance(e, Springs))
+    scene = generators.cloth(n, n, damping=2.0)
+    return tables(next(e for e in scene.system.effects if isinstance(e, Springs)))
+
+
+def tables(springs: Springs) -> tuple[tuple, tuple]:
+    """``springs``' kernel parameters (rows joined by gap springs) and the same springs without them."""
     joined = springs.kernel_params()
     order, ranges, phases = batches(springs.i, springs.j, springs.n)
     i, j = springs.i[order], springs.j[order]
@@ -278,3 +283,46 @@ def test_first_at_least_is_searchsorted(values, value):
     unsigned = max(value, 0)  # (the kernel's indices are uint32)
     found = compiled(first_at_least)(ascending.astype(np.uint32), unsigned)
     assert found == np.searchsorted(ascending, unsigned)
+
+
+def test_gap_springs_join_rows_only():
+    """Springs listed with a stride (ropes of every 4th particle, a ladder's rails) are no rows:
+    joining them would make most of the table gap springs (an outside check found 3 per spring)."""
+    ropes = np.concatenate([np.arange(r, 4000 - 4, 4) for r in range(4)])  # (p, p + 4), rope by rope
+    rails = np.arange(0, 2000, 2)  # (2k, 2k + 2)
+    one_batch = np.array([0, 1])
+    for i, offset in ((ropes, 4), (rails, 2)):
+        _, step, _ = gap_springs(i, i + offset, np.array([0, i.size]), one_batch)
+        assert not np.any(step)
+    short = np.concatenate([np.arange(10 * r, 10 * r + 7) for r in range(20)])  # rows of 7 < MIN_ROW
+    _, step, _ = gap_springs(short, short + 1, np.array([0, short.size]), one_batch)
+    assert not np.any(step)
+
+
+def test_no_force_entry_starts_as_negative_zero_in_float32():
+    """A constant force below float32's range rounds to -0.0; the loops' forces start from +0.0,
+    so a gap spring's +0.0 changes no bit (the outside check's 3D ropes under g = -1e-50)."""
+    from mslab import fast
+    from mslab.scenes import SceneBuilder
+
+    b = SceneBuilder(dim=3)
+    for r in range(3):
+        for s in range(60):
+            b.add_particle([float(s), 2.0 * r, -0.0], mass=1.0)
+    b.add_springs([(60 * r + s, 60 * r + s + 1) for r in range(3) for s in range(59)], stiffness=100.0,
+                  rest_length=1.0)
+    b.add_gravity([0.0, 0.0, -1e-50])
+    system = b.build().system
+    model = fast.ForceModel(system, np.float32)
+    assert not np.any((model.f0 == 0) & np.signbit(model.f0))
+    springs = next(e for e in system.effects if isinstance(e, Springs))
+    assert springs.kernel_params()[10].size == 2  # the three ropes are one run
+    joined, plain = tables(springs)
+    x = np.array([[0.9 * s, 2.0 * r, -0.0] for r in range(3) for s in range(60)], np.float32)  # compressed
+    v = np.zeros_like(x)
+    out = []
+    for table in (joined, plain):
+        f = model.f0.copy()
+        compiled(spring_kernel)(x, v, f, *[_param(p, np.float32) for p in table])
+        out.append(f.tobytes())
+    assert out[0] == out[1]

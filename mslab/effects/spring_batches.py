@@ -148,6 +148,9 @@ def segments(i: np.ndarray, j: np.ndarray, ranges: np.ndarray, min_run: int = MI
 
 #: most gap springs that join two rows (a mesh's rows of bend springs stop two particles short)
 MAX_GAP = 3
+#: fewest springs of each of the two rows a gap joins (so gap springs stay a small share:
+#: springs listed with a stride, ``(p, p + 4)`` rope by rope, are no rows to join)
+MIN_ROW = 8
 
 
 def gap_springs(i: np.ndarray, j: np.ndarray, ranges: np.ndarray, phases: np.ndarray,
@@ -158,12 +161,14 @@ def gap_springs(i: np.ndarray, j: np.ndarray, ranges: np.ndarray, phases: np.nda
     starts a few particles further on: the run breaks at every row's end, and a 64 x 64 cloth
     is 262 runs of about 63 springs, each paying a run's set-up (a tenth of its time,
     ``benchmarks/RESULTS.md``). Where two consecutive springs of a batch have the same offset
-    ``b - a > 0`` and ``i`` jumps by ``2 .. max_gap + 1``, the springs between them that the
+    ``b - a > 0`` and ``i`` jumps by ``2 .. max_gap + 1``, each the end or start of a row of at
+    least :data:`MIN_ROW` consecutive springs ``(a + s, b + s)``, the springs between them that the
     mesh does not have (``(a + s, b + s)`` for the skipped ``s``) are inserted as *gap
     springs*: they exert no force. The kernel sets their pair forces to ``+0.0``, which leaves
     every force entry as it is: ``f + 0.0`` and ``f - 0.0`` are ``f`` unless ``f`` is ``-0.0``,
-    and no entry is: it starts from the constant forces, formed as ``0.0 + ...``, and an IEEE
-    sum or difference is ``-0.0`` only where its first operand already is. Their powers are
+    and no entry is: it starts from the constant forces, formed as ``0.0 + ...`` and made
+    ``+0.0`` where they round to a zero (:class:`mslab.fast.ForceModel`), and an IEEE sum or
+    difference is ``-0.0`` only where its first operand already is. Their powers are
     ``+0.0`` too (the dissipated power changes by round-off: another order of its sum). The
     rows then form one run (a 64 x 64 cloth: 24 runs instead of 262, 1.3 % gap springs), and
     each particle still receives its springs' forces in the same order: the forces are
@@ -186,7 +191,14 @@ def gap_springs(i: np.ndarray, j: np.ndarray, ranges: np.ndarray, phases: np.nda
     if m > 1:
         jump = i[1:] - i[:-1]
         offset = j - i
-        fill = (offset[1:] == offset[:-1]) & (offset[:-1] > 0) & (jump >= 2) & (jump <= max_gap + 1)
+        same = offset[1:] == offset[:-1]
+        starts = np.ones(m, dtype=bool)  # a row of consecutive springs (a + s, b + s) starts here
+        starts[1:] = ~(same & (jump == 1))
+        starts[ranges[:-1][ranges[:-1] < m]] = True
+        row = np.cumsum(starts) - 1
+        length = np.bincount(row)[row]  # the length of each spring's row
+        fill = same & (offset[:-1] > 0) & (jump >= 2) & (jump <= max_gap + 1)
+        fill &= (length[:-1] >= MIN_ROW) & (length[1:] >= MIN_ROW)
         alone = np.zeros(m, dtype=bool)  # springs of a batch that is alone in its phase
         for p in range(phases.size - 1):
             if phases[p + 1] - phases[p] == 1:

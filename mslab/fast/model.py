@@ -115,7 +115,9 @@ class ForceModel:
         The compiled loops for these kernels (:func:`mslab.fast.compose.module_for`).
     dtype : numpy dtype
         The precision of the arrays above (float64; float32 for ``dtype="float32"`` runs): the
-        constant forces and inverse masses are formed in float64 and rounded once.
+        constant forces and inverse masses are formed in float64 and rounded once; a constant
+        force that rounds to ``-0.0`` becomes ``+0.0`` (no force entry of a loop is ``-0.0``:
+        :func:`mslab.effects.spring_batches.gap_springs` relies on it).
     """
 
     def __init__(self, system: System, dtype: type = np.float64):
@@ -130,7 +132,7 @@ class ForceModel:
         for e, c in zip(system.effects, constant, strict=True):
             if c:
                 f0 += e.force(np.zeros(shape), np.zeros(shape))
-        self.f0 = f0.astype(self.dtype)
+        self.f0 = f0.astype(self.dtype) + self.dtype.type(0.0)  # (a tiny force rounds to -0.0: made +0.0)
         self.params = tuple(tuple(_param(p, self.dtype) for p in e.kernel_params()) for e in varying)
         self.inv_mass = np.ascontiguousarray(system.inv_mass, dtype=self.dtype)
         self.w = np.repeat(self.inv_mass, system.dim)
