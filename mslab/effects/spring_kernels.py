@@ -91,12 +91,8 @@ def spring_batch(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: 
     g = first_at_least(gaps, bounds[first]) if first < last else n_gaps  # the next gap spring
     for s in range(first, last):
         if not (runs and run[s]):
-            if g < n_gaps and np.int64(gaps[g]) < np.int64(bounds[s + 1]):
-                power, g = plain_segment(x, v, f, i, j, stiffness, rest_length, damping, damped, gaps, g,
-                                         bounds[s], bounds[s + 1], power)
-            else:
-                power = spring_range(x, v, f, i, j, stiffness, rest_length, damping, damped, bounds[s],
-                                     bounds[s + 1], power)
+            power, g = plain_segment(x, v, f, i, j, stiffness, rest_length, damping, damped, gaps, g,
+                                     bounds[s], bounds[s + 1], power)
             continue
         q0 = np.uint64(bounds[s])  # spring q0 + t joins particles a + t and b + t
         m = np.int64(bounds[s + 1]) - np.int64(bounds[s])
@@ -171,11 +167,14 @@ def plain_segment(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j:
     ``gaps[g]`` is the first gap spring at or after ``start``; ``g`` returned, the first after ``stop``.
     """
     lo = np.int64(start)
-    while g < gaps.shape[0] and np.int64(gaps[g]) < np.int64(stop):
-        power = spring_range(x, v, f, i, j, stiffness, rest_length, damping, damped, lo, gaps[g], power)
-        lo = np.int64(gaps[g]) + 1
+    while True:  # (one call of spring_range in the code: each call site is compiled, inlined, again)
+        gap = g < gaps.shape[0] and np.int64(gaps[g]) < np.int64(stop)
+        hi = np.int64(gaps[g]) if gap else np.int64(stop)
+        power = spring_range(x, v, f, i, j, stiffness, rest_length, damping, damped, lo, hi, power)
+        if not gap:
+            return power, g
+        lo = hi + 1
         g += 1
-    return spring_range(x, v, f, i, j, stiffness, rest_length, damping, damped, lo, stop, power), g
 
 
 def zero_gaps(pair: np.ndarray, rates: np.ndarray, damped: int, gaps: np.ndarray, g: int, q0: int,
