@@ -181,6 +181,7 @@ def kernel_limit(runner, x, v, repeats: int) -> dict:
     n = next(q for q, kern in enumerate(kernels) if kern.__name__ == "spring_kernel")
     kern = getattr(mod, f"_k{n}")
     m = params[n][0].size - params[n][10].size  # springs (not gap springs)
+    x, v = (np.ascontiguousarray(a.T).T for a in (x, v))  # coordinate-major, as the loops hand them
     f = np.zeros_like(x)
     floor = _floor_kernel()
     a = np.random.default_rng(0).uniform(0.5, 2.0, m)

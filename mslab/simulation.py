@@ -351,11 +351,12 @@ class Simulation:
 
     def _check_ledger(self) -> None:
         loop, system = self._loop, self.system
-        kinetic = float(system.kinetic_energy(loop.v, self.compiled))
-        total = kinetic + float(system.potential_energy(loop.x, self.compiled)) + loop.dissipated
+        x, v = loop.x, loop.v  # (a compiled loop's are copies: read once)
+        kinetic = float(system.kinetic_energy(v, self.compiled))
+        total = kinetic + float(system.potential_energy(x, self.compiled)) + loop.dissipated
         if system.driving:
-            total -= float(system.external_work(loop.x, self._samples.x[0]))
-        reason = self._check.check(loop.step, total, kinetic, loop.x, loop.v)
+            total -= float(system.external_work(x, self._samples.x[0]))
+        reason = self._check.check(loop.step, total, kinetic, x, v)
         if reason is not None:
             raise _LedgerGrew(reason)
 

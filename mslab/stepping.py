@@ -79,12 +79,12 @@ class CompiledLoop:
 
     @property
     def x(self) -> np.ndarray:
-        """Current positions (the loop's own array)."""
+        """Current positions, a float64 copy (the loop keeps its state coordinate-major)."""
         return self.runner.x
 
     @property
     def v(self) -> np.ndarray:
-        """Current velocities (the loop's own array)."""
+        """Current velocities, a float64 copy (the loop keeps its state coordinate-major)."""
         return self.runner.v
 
     @property

@@ -298,7 +298,7 @@ def test_constant_forces_are_summed_once():
     names = [k.__name__ for k in model.kernels]
     assert "gravity_kernel" not in names and "spring_kernel" in names and "damping_kernel" in names
     gravity = next(e for e in scene.system.effects if e.name == "gravity")
-    assert np.array_equal(model.f0, gravity.force(scene.state0.x, scene.state0.v))
+    assert np.array_equal(model.f0.T, gravity.force(scene.state0.x, scene.state0.v))  # (dim, n) in the loops
 
 
 def test_index_parameters_are_narrowed_without_changing_values():

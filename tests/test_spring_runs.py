@@ -38,6 +38,11 @@ from mslab.scenes import generators
 pytest.importorskip("numba")
 
 
+def rows(a: np.ndarray) -> np.ndarray:
+    """``a`` (n, dim) on coordinate-major memory, as the stepping loops hand it to kernels (layout "F")."""
+    return np.ascontiguousarray(a.T).T
+
+
 def spring_table(rng: np.random.Generator, n: int, pieces: int) -> tuple[np.ndarray, np.ndarray]:
     """Springs in pieces: rows ``(a + s, a + d + s)`` of random length and sign of ``d``, random pairs."""
     i, j = [], []
@@ -67,8 +72,9 @@ def spring_table(rng: np.random.Generator, n: int, pieces: int) -> tuple[np.ndar
 
 @settings(max_examples=40, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), dim=st.sampled_from([1, 2, 3]), damped=st.booleans(),
-       pieces=st.integers(1, 12), parallel=st.booleans(), uniform=st.booleans())
-def test_runs_give_the_plain_loops_bits(seed, dim, damped, pieces, parallel, uniform):
+       pieces=st.integers(1, 12), parallel=st.booleans(), uniform=st.booleans(), major=st.booleans())
+def test_runs_give_the_plain_loops_bits(seed, dim, damped, pieces, parallel, uniform, major):
+    """Runs (on coordinate-major memory when ``major``, as in the loops) give the plain loop's bits."""
     rng = np.random.default_rng(seed)
     n = 4 * MAX_RUN
     i, j = spring_table(rng, n, pieces)
@@ -94,7 +100,9 @@ def test_runs_give_the_plain_loops_bits(seed, dim, damped, pieces, parallel, uni
               np.flatnonzero(step))
     f_runs = rng.normal(size=(n, dim))  # forces already there (gravity): added to, in order
     f_plain = f_runs.copy()
-    p_runs = kernel(x, v, f_runs, *[_param(p) for p in joined])
+    if major:
+        f_runs = rows(f_runs)
+    p_runs = kernel(rows(x) if major else x, rows(v) if major else v, f_runs, *[_param(p) for p in joined])
     params = [_param(p) for p in plain]
     params[7] = np.zeros_like(params[7])  # nothing is a run: every spring through spring_range
     p_plain = kernel(x, v, f_plain, *params)
@@ -250,8 +258,9 @@ def test_gap_springs_join_a_cloths_rows_and_exert_nothing(dtype):
     kernel = compiled(spring_kernel)
     out = {}
     for name, table in (("joined", joined), ("plain", plain), ("gaps as springs", joined[:10] + (gaps[:0],))):
-        f = f0.copy()
-        out[name] = f, kernel(x, v, f, *[_param(p, dtype) for p in table])
+        f = rows(f0) if name == "joined" else f0.copy()  # the loops' layout against the particles'
+        xl, vl = (rows(x), rows(v)) if name == "joined" else (x, v)
+        out[name] = f, kernel(xl, vl, f, *[_param(p, dtype) for p in table])
     assert np.array_equal(out["joined"][0], out["plain"][0])
     bound = 2 * joined[0].size * np.finfo(float).eps * out["plain"][1]
     assert abs(out["joined"][1] - out["plain"][1]) <= bound
@@ -322,7 +331,7 @@ def test_no_force_entry_starts_as_negative_zero_in_float32():
     v = np.zeros_like(x)
     out = []
     for table in (joined, plain):
-        f = model.f0.copy()
-        compiled(spring_kernel)(x, v, f, *[_param(p, np.float32) for p in table])
+        f = model.f0.copy().T  # (coordinate-major, as in the loops)
+        compiled(spring_kernel)(rows(x), rows(v), f, *[_param(p, np.float32) for p in table])
         out.append(f.tobytes())
     assert out[0] == out[1]

@@ -77,14 +77,15 @@ def spring_batch(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: 
     see :func:`plain_segment` and :func:`zero_gaps`.
 
     A run is no call of its own (a compiled call with arrays costs numba's reference counting,
-    ~120 ns), and makes no array view: ``x``, ``v``, ``f`` are viewed flat once per batch and
-    indexed by unsigned offsets (numba then adds no test for negative indices).
+    ~120 ns) and makes no array view; particles are indexed by unsigned offsets (numba then adds
+    no test for negative indices). The stepping loops hand ``x``, ``v``, ``f`` coordinate-major
+    (``(3, n)`` memory seen as ``(n, 3)``, numba's layout "F": :mod:`mslab.fast.loops`), so a run
+    reads and writes one contiguous row per coordinate, with no shuffles of interleaved x, y, z.
     """
     runs = x.shape[1] == 3
     longest = longest_run(bounds, run, first, last) if runs else 0  # the buffers' size
-    pair = np.empty(3 * (longest + 7), x.dtype)  # a run's pair forces (and up to 7 more, below)
+    pair = np.empty((3, longest + 7), x.dtype)  # a run's pair forces, a row per coordinate (+7, below)
     rates = np.empty(longest + 7 if damped else 0, x.dtype)  # a run's dissipated powers
-    xs, vs, fs = x.reshape(x.size), v.reshape(v.size), f.reshape(f.size)  # flat views, once
     zero = stiffness.dtype.type(0.0)
     power = 0.0
     n_gaps = gaps.shape[0]
@@ -96,41 +97,32 @@ def spring_batch(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: 
             continue
         q0 = np.uint64(bounds[s])  # spring q0 + t joins particles a + t and b + t
         m = np.int64(bounds[s + 1]) - np.int64(bounds[s])
-        a, b = np.int64(i[q0]), np.int64(j[q0])
-        xa, xb = np.uint64(3 * a), np.uint64(3 * b)  # x[a + t] starts at xa + 3 t, x[b + t] at xb + 3 t
+        a, b = np.uint64(i[q0]), np.uint64(j[q0])
         # whole vectors: springs up to a multiple of 8 where the next particles and table entries
         # exist, their pairs computed into the buffers and never added (no scalar remainder loop)
         pad = (m + 7) // 8 * 8
-        if 3 * (b + pad) > xs.shape[0] or np.int64(q0) + pad > rest_length.shape[0]:
+        if np.int64(b) + pad > x.shape[0] or np.int64(q0) + pad > rest_length.shape[0]:
             pad = m
         if damped and (run[s] & 2) != 0:  # spring_batches.SAME_STIFFNESS: k and c in registers
             k0, c0 = stiffness[q0], damping[q0]
             for t in range(pad):
                 q = np.uint64(t)
-                run_pair(xs, vs, xa, xb, q, k0, rest_length[q0 + q], c0, 1, pair, rates)
+                run_pair(x, v, a, b, q, k0, rest_length[q0 + q], c0, 1, pair, rates)
         elif damped:
             for t in range(pad):
                 q = np.uint64(t)
-                run_pair(xs, vs, xa, xb, q, stiffness[q0 + q], rest_length[q0 + q], damping[q0 + q], 1,
+                run_pair(x, v, a, b, q, stiffness[q0 + q], rest_length[q0 + q], damping[q0 + q], 1,
                          pair, rates)
         else:  # (one stiffness in a register measured no faster here: the loads are not what bounds it)
             for t in range(pad):
                 q = np.uint64(t)
-                run_pair(xs, xs, xa, xb, q, stiffness[q0 + q], rest_length[q0 + q], zero, 0, pair, rates)
+                run_pair(x, x, a, b, q, stiffness[q0 + q], rest_length[q0 + q], zero, 0, pair, rates)
         if g < n_gaps and np.int64(gaps[g]) < np.int64(q0) + m:  # (no call for a run without gaps)
             g = zero_gaps(pair, rates, damped, gaps, g, q0, m)
         if damped:
             power += lane_sum(rates, m)
-        # f[a + t] += pair[t] and f[b + t] -= pair[t], the j end first where a particle has both ends
-        shift = 3 * (b - a)
-        size = 3 * m
-        for t in range(min(shift, size)):  # particles with an i end only
-            fs[xa + np.uint64(t)] += pair[np.uint64(t)]
-        for t in range(shift, size):  # both ends: -f of spring p - b, then +f of spring p - a
-            e = xa + np.uint64(t)
-            fs[e] = (fs[e] - pair[np.uint64(t - shift)]) + pair[np.uint64(t)]
-        for t in range(max(shift, size), shift + size):  # a j end only
-            fs[xa + np.uint64(t)] -= pair[np.uint64(t - shift)]
+        for c in range(3):  # f[a + t] += pair[t] and f[b + t] -= pair[t], coordinate by coordinate
+            scatter_row(f, pair, c, a, np.int64(b) - np.int64(a), m)
     return power
 
 
@@ -157,6 +149,23 @@ def longest_run(bounds: np.ndarray, run: np.ndarray, first: int, last: int) -> i
         if run[s]:
             longest = max(longest, np.int64(bounds[s + 1]) - np.int64(bounds[s]))
     return longest
+
+
+def scatter_row(f: np.ndarray, pair: np.ndarray, c: int, a: int, shift: int, m: int) -> None:
+    """Add coordinate ``c`` of a run's pair forces: ``f[a + t, c] += pair[c, t]``, ``f[a + shift + t, c] -=``.
+
+    Where a particle is both ends (``shift < m``) it receives ``-f`` of spring ``p - b`` before
+    ``+f`` of spring ``p - a``: the order of :func:`spring_range` over the run.
+    """
+    for t in range(min(shift, m)):  # particles with an i end only
+        e = a + np.uint64(t)
+        f[e, c] += pair[c, np.uint64(t)]
+    for t in range(shift, m):  # both ends: -f of spring p - b, then +f of spring p - a
+        e = a + np.uint64(t)
+        f[e, c] = (f[e, c] - pair[c, np.uint64(t - shift)]) + pair[c, np.uint64(t)]
+    for t in range(max(shift, m), shift + m):  # a j end only
+        e = a + np.uint64(t)
+        f[e, c] -= pair[c, np.uint64(t - shift)]
 
 
 def plain_segment(x: np.ndarray, v: np.ndarray, f: np.ndarray, i: np.ndarray, j: np.ndarray,
@@ -187,8 +196,7 @@ def zero_gaps(pair: np.ndarray, rates: np.ndarray, damped: int, gaps: np.ndarray
     zero = pair.dtype.type(0.0)
     while g < gaps.shape[0] and np.int64(gaps[g]) < np.int64(q0) + m:
         t = np.uint64(gaps[g]) - np.uint64(q0)
-        e = np.uint64(3) * t
-        pair[e] = pair[e + np.uint64(1)] = pair[e + np.uint64(2)] = zero
+        pair[0, t] = pair[1, t] = pair[2, t] = zero
         if damped:
             rates[t] = zero
         g += 1
@@ -260,31 +268,29 @@ def pair_scale(dx: float, dy: float, dz: float, rate: float, stiffness: float, r
     return s, zero
 
 
-def run_pair(x: np.ndarray, v: np.ndarray, xa: int, xb: int, s: int, k: float, rest: float, c: float,
+def run_pair(x: np.ndarray, v: np.ndarray, a: int, b: int, t: int, k: float, rest: float, c: float,
              damped: int, out: np.ndarray, rates: np.ndarray) -> None:
-    """Write spring ``s`` of a run: its pair force into ``out[3s:3s+3]``, its power into ``rates[s]``.
+    """Write spring ``t`` of a run: its pair force into ``out[:, t]``, its power into ``rates[t]``.
 
     The body of the run loops of :func:`spring_batch` (inlined there; ``damped`` a constant of
-    each loop);
-    the ends' coordinates start at ``xa + 3 s`` and ``xb + 3 s`` of the flat ``x`` and ``v``.
+    each loop); the spring joins particles ``a + t`` and ``b + t``.
     """
-    t = np.uint64(3) * s
-    one = np.uint64(1)
-    two = np.uint64(2)
-    dx = x[xa + t] - x[xb + t]
-    dy = x[xa + t + one] - x[xb + t + one]
-    dz = x[xa + t + two] - x[xb + t + two]
+    ta = a + t
+    tb = b + t
+    dx = x[ta, 0] - x[tb, 0]
+    dy = x[ta, 1] - x[tb, 1]
+    dz = x[ta, 2] - x[tb, 2]
     rate = x.dtype.type(0.0)
     if damped:
-        rate = dx * (v[xa + t] - v[xb + t])
-        rate += dy * (v[xa + t + one] - v[xb + t + one])
-        rate += dz * (v[xa + t + two] - v[xb + t + two])
+        rate = dx * (v[ta, 0] - v[tb, 0])
+        rate += dy * (v[ta, 1] - v[tb, 1])
+        rate += dz * (v[ta, 2] - v[tb, 2])
     scale, p = pair_scale(dx, dy, dz, rate, k, rest, c, damped)
     if damped:
-        rates[s] = p
-    out[t] = scale * dx
-    out[t + one] = scale * dy
-    out[t + two] = scale * dz
+        rates[t] = p
+    out[0, t] = scale * dx
+    out[1, t] = scale * dy
+    out[2, t] = scale * dz
 
 
 def lane_sum(values: np.ndarray, count: int = -1) -> float:

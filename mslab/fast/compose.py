@@ -9,7 +9,7 @@ template :mod:`mslab.fast.loops` (plain functions) followed by::
     ...
     def scene_forces(x, v, f, params):
         power = 0.0
-        power += _k0(x, v, f, *params[0])
+        power += _k0(x.T, v.T, f.T, *params[0])
         return power
 
 then imports it and replaces each of its functions by :func:`mslab.jit.compiled` of it
@@ -91,9 +91,9 @@ def source(kernels: Sequence[Callable], parallel: bool = False) -> str:
         digest = hashlib.sha256(body.encode()).hexdigest()[:16]
         lines.append(f"from {kern.__module__} import {kern.__name__} as _py_k{n}  # source {digest}")
     lines += ["", "", "def scene_forces(x, v, f, params):",
-              '    """Sum of the effects\' kernels: ``f += sum_e f_e``; returns the dissipated power."""',
+              '    """``f += sum_e f_e`` (arrays (dim, n); kernels get transposes); returns the power."""',
               "    power = 0.0"]
-    lines += [f"    power += _k{n}(x, v, f, *params[{n}])" for n in range(len(kernels))]
+    lines += [f"    power += _k{n}(x.T, v.T, f.T, *params[{n}])" for n in range(len(kernels))]
     lines += ["    return power", ""]
     return "\n".join(lines)
 

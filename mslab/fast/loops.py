@@ -3,31 +3,30 @@
 This file is a *template* of plain functions: :mod:`mslab.fast.compose` copies its text into a
 module generated for one combination of effect kernels, appends the definition of
 ``scene_forces`` (the sum of the effects' own ``kernel`` functions) and compiles every
-function of it with :func:`mslab.jit.compiled` (``error_model="numpy"``), so numba
-inlines the kernels into the loops and caches them (a later process loads them in a
-fraction of a second). Nothing here knows any effect. Arrays are C-contiguous: positions ``x``
-and velocities ``v`` of shape ``(n_particles, dim)``, float64, or float32 (``dtype="float32"``:
-the state, forces and the loops' buffers in float32; the step's scalars, the saved samples and
-the dissipated work stay float64, so a particle update is computed in float64 and rounded once
-when stored).
+function of it with :func:`mslab.jit.compiled` (``error_model="numpy"``), so numba inlines
+the kernels into the loops and caches them. Nothing here knows any effect. Arrays are
+C-contiguous and *coordinate-major*: ``x``, ``v`` of shape ``(dim, n_particles)``;
+``scene_forces`` hands the kernels their transposes (``(n_particles, dim)`` views, numba's
+layout "F"), so a kernel indexes ``x[p, c]`` as everywhere while a run of springs streams
+each coordinate without shuffles (:mod:`mslab.effects.spring_kernels`; forces bitwise those of
+particle-major memory). Saved samples are particle-major. Float64, or float32: the state,
+forces and buffers in float32; the step's scalars, the samples and the dissipated work
+float64, so a particle update is computed in float64 and rounded once when stored.
 
-The loops are lean: forces accumulate into a scratch array ``f`` that holds the
-scene's constant forces ``f0`` between uses (gravity: see :class:`mslab.fast.ForceModel`),
-restored by each pass that reads ``f``, so there is neither a zeroing nor a gravity pass;
-a kick, the following drift and the blow-up test of the step share one pass over the
-particles; the acceleration ``a = f / m`` is formed in that pass, not stored. On a big scene
-that pass of the splitting loop (:func:`_particle_pass`) runs on all threads, over the parts
-``cuts`` of :func:`mslab.fast.model.particle_cuts`: every entry gets the same operations
-whichever thread takes it, so the states are bitwise the same on any number of threads. Passes over
-particles run on flat views of the ``(n_particles, dim)`` arrays, with the inverse mass
-repeated per coordinate (``w``), branch-free inside and without zero-division checks
-(``error_model="numpy"``): numba vectorises them, which it does not do for the
-two-index loops (measured 8x faster on a 300 x 300 cloth).
+The loops are lean: forces accumulate into a scratch array ``f`` that holds the scene's
+constant forces ``f0`` between uses (gravity: :class:`mslab.fast.ForceModel`), restored by each
+pass that reads ``f`` (no zeroing, no gravity pass); a kick, the following drift and the
+blow-up test share one pass over the particles, which forms ``a = f / m`` without storing it.
+On a big scene that pass of the splitting loop (:func:`_particle_pass`) runs on all threads over
+the parts ``cuts`` (:func:`mslab.fast.model.particle_cuts`): every entry gets the same operations
+on any thread, so the states are bitwise the same on any number of threads. Particle passes
+run on flat views, with the inverse mass tiled per coordinate (``w``), branch-free and without
+zero-division checks (``error_model="numpy"``): numba vectorises them, which it does not do for
+two-index loops (8x faster on a 300 x 300 cloth).
 
-Every loop returns ``(step, k, dissipated, status, n_force)``: the last step taken, the next
-free save slot, :data:`OK` or :data:`BLOWUP` (then ``step`` is the step that blew up), and
-the number of force evaluations made; states whose step is in ``saved[k:]`` go to
-``xs, vs, ds``.
+Every loop returns ``(step, k, dissipated, status, n_force)``: the last step taken, the next free
+save slot, :data:`OK` or :data:`BLOWUP` (``step`` blew up), and the number of force evaluations;
+states whose step is in ``saved[k:]`` go to ``xs, vs, ds``.
 """
 
 from __future__ import annotations
@@ -61,8 +60,9 @@ def rhs(x, v, a, w, f0, params):
 
 
 def _save(x, v, dissipated, xs, vs, ds, k):
-    xs[k] = x
-    vs[k] = v
+    """Save the state (coordinate-major) as the sample ``k`` (particle-major, ``(n_particles, dim)``)."""
+    xs[k] = x.T
+    vs[k] = v.T
     ds[k] = dissipated
 
 
@@ -156,15 +156,15 @@ def run_explicit_rk(x, v, dissipated, A, b, dt, step, n_steps, saved, k, xs, vs,
     ``Y_s = y_n + h sum_{r<s} A_sr K_r``, ``y_{n+1} = y_n + h sum_s b_s K_s``; the dissipated
     work gets the weights ``b`` too. ``kx[s]`` is the stage velocity, ``kv[s]`` its acceleration.
     """
-    n, dim = x.shape
+    dim, n = x.shape
     size = n * dim
     s = b.shape[0]
     xf = x.reshape(size)
     vf = v.reshape(size)
     f0f = f0.reshape(size)
-    kx = np.empty((s, n, dim), x.dtype)
-    kv = np.empty((s, n, dim), x.dtype)
-    xi = np.empty((n, dim), x.dtype)
+    kx = np.empty((s, dim, n), x.dtype)
+    kv = np.empty((s, dim, n), x.dtype)
+    xi = np.empty((dim, n), x.dtype)
     xif = xi.reshape(size)
     kxf = kx.reshape((s, size))
     kvf = kv.reshape((s, size))
@@ -267,7 +267,7 @@ def run_splitting(x, v, dissipated, drift, kick, reuse, kA, kb, mem_a, mem_p,
     last kick only). The passes without stages run on all threads over the parts ``cuts``
     (:func:`_particle_pass`).
     """
-    n, dim = x.shape
+    dim, n = x.shape
     size = n * dim
     nk = kick.shape[0]
     ns = kb.shape[0]
@@ -279,7 +279,7 @@ def run_splitting(x, v, dissipated, drift, kick, reuse, kA, kb, mem_a, mem_p,
     maf = mem_a.reshape(size)
     acc = np.empty((ns if ns > 1 else 0, size), x.dtype)
     pws = np.empty(ns)
-    vi = np.empty((n, dim) if ns > 1 else (0, dim), x.dtype)
+    vi = np.empty((dim, n) if ns > 1 else (dim, 0), x.dtype)
     n_force = 0
     p_last = mem_p[0]
     while step < n_steps:
@@ -333,7 +333,7 @@ def run_two_step(method, x, v, dissipated, mem_x, mem_a, mem_p, dt, step, n_step
 
     Memory arrays are updated in place.
     """
-    n, dim = x.shape
+    dim, n = x.shape
     size = n * dim
     xf = x.reshape(size)
     vf = v.reshape(size)
@@ -343,8 +343,8 @@ def run_two_step(method, x, v, dissipated, mem_x, mem_a, mem_p, dt, step, n_step
     ff = f.reshape(size)
     f0f = f0.reshape(size)
     verlet = method == VERLET
-    xg = x if verlet else np.empty((n, dim), x.dtype)
-    vg = v if verlet else np.empty((n, dim), x.dtype)
+    xg = x if verlet else np.empty((dim, n), x.dtype)
+    vg = v if verlet else np.empty((dim, n), x.dtype)
     xgf = xg.reshape(size)
     vgf = vg.reshape(size)
     n_force = 0

@@ -103,12 +103,12 @@ class ForceModel:
         The ``kernel`` functions of the other effects, in the System's summation order.
     params : tuple of tuple
         Their :meth:`~mslab.effects.Effect.kernel_params`, as the kernels take them.
-    f0 : ndarray, shape (n_particles, dim)
-        The sum of the constant forces.
+    f0 : ndarray, shape (dim, n_particles)
+        The sum of the constant forces, coordinate-major as the loops' arrays (:mod:`mslab.fast.loops`).
     inv_mass : ndarray, shape (n_particles,)
         ``1/m`` (0 for pinned particles).
-    w : ndarray, shape (n_particles * dim,)
-        ``inv_mass`` repeated per coordinate (the loops' flat passes).
+    w : ndarray, shape (dim * n_particles,)
+        ``inv_mass`` tiled per coordinate (the loops' flat passes over coordinate-major arrays).
     cuts : ndarray of int64
         The parts of those passes (:func:`particle_cuts`): more than one runs them on all threads.
     module : module
@@ -132,25 +132,26 @@ class ForceModel:
         for e, c in zip(system.effects, constant, strict=True):
             if c:
                 f0 += e.force(np.zeros(shape), np.zeros(shape))
-        self.f0 = f0.astype(self.dtype) + self.dtype.type(0.0)  # (a tiny force rounds to -0.0: made +0.0)
+        self.f0 = np.ascontiguousarray(f0.T, dtype=self.dtype) + self.dtype.type(0.0)  # (-0.0 made +0.0)
         self.params = tuple(tuple(_param(p, self.dtype) for p in e.kernel_params()) for e in varying)
         self.inv_mass = np.ascontiguousarray(system.inv_mass, dtype=self.dtype)
-        self.w = np.repeat(self.inv_mass, system.dim)
+        self.w = np.tile(self.inv_mass, system.dim)
         self.cuts = particle_cuts(self.w.size)
         self.module = compose.module_for(self.kernels, parallel=self.cuts.size > 2)
 
     def rhs(self, x: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, float]:
         """Return acceleration (n_particles, dim) and dissipated power: ``System.rhs`` compiled, uncounted."""
-        a = np.empty(np.shape(x))
-        p = self.module.rhs(_f64(x), _f64(v), a, self.w, self.f0, self.params)
-        return a, float(p)
+        a = np.empty(np.shape(x)[::-1])
+        p = self.module.rhs(_rows(x), _rows(v), a, self.w, self.f0, self.params)
+        return np.ascontiguousarray(a.T), float(p)
 
     def force(self, x: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, float]:
         """Return the total force (n_particles, dim) and dissipated power from the kernels, not counted."""
         f = self.f0.copy()
-        p = self.module.scene_forces(_f64(x), _f64(v), f, self.params)
-        return f, float(p)
+        p = self.module.scene_forces(_rows(x), _rows(v), f, self.params)
+        return np.ascontiguousarray(f.T), float(p)
 
 
-def _f64(a: np.ndarray) -> np.ndarray:
-    return np.ascontiguousarray(a, dtype=np.float64)
+def _rows(a: np.ndarray) -> np.ndarray:
+    """Return ``a`` (n_particles, dim) as the loops' coordinate-major float64 array (dim, n_particles)."""
+    return np.ascontiguousarray(np.asarray(a).T, dtype=np.float64)

@@ -59,8 +59,8 @@ class Stepper:
 
     def load(self, state: State) -> None:
         """Take ``state`` (after the method's numpy ``start``) as the state the loop continues from."""
-        self._x = np.array(state.x, dtype=self.dtype, order="C")
-        self._v = np.array(state.v, dtype=self.dtype, order="C")
+        self._x = _rows(state.x, self.dtype)
+        self._v = _rows(state.v, self.dtype)
         self._mem = self._memory(state)
         self.dissipated = float(state.dissipated)
 
@@ -79,18 +79,17 @@ class Stepper:
 
     @property
     def x(self) -> np.ndarray:
-        """The loop's positions (its own array in float64: read, do not keep; else a float64 copy)."""
-        return _f64(self._x)
+        """The loop's positions, a float64 copy (n_particles, dim)."""
+        return _particles(self._x)
 
     @property
     def v(self) -> np.ndarray:
-        """The loop's velocities (its own array in float64: read, do not keep; else a float64 copy)."""
-        return _f64(self._v)
+        """The loop's velocities, a float64 copy (n_particles, dim)."""
+        return _particles(self._v)
 
     def state(self) -> State:
         """Return a copy of the loop's current state, with the method's memory (float64)."""
-        return State(np.array(self._x, np.float64), np.array(self._v, np.float64), self._memory_tuple(),
-                     self.dissipated)
+        return State(_particles(self._x), _particles(self._v), self._memory_tuple(), self.dissipated)
 
     def advance(self, state: State, dt: float, step: int, stop: int, saved: np.ndarray, k: int,
                 xs: np.ndarray, vs: np.ndarray, ds: np.ndarray, limit: float) -> tuple[int, int, State, bool]:
@@ -113,9 +112,9 @@ class Stepper:
             self.view.warm()
             return
         shape = (self.system.n_particles, self.system.dim)
-        x, v = np.zeros(shape, self.dtype), np.zeros(shape, self.dtype)
+        x, v = np.zeros(shape[::-1], self.dtype), np.zeros(shape[::-1], self.dtype)
         empty = np.empty((0,) + shape)
-        mem = self._memory(State(x, v, (), 0.0), blank=True)
+        mem = self._memory(State(x.T, v.T, (), 0.0), blank=True)
         self._run(x, v, 0.0, mem, (1.0, 0, 0, np.zeros(0, dtype=np.int64), 0, empty, empty, np.empty(0), 1.0))
 
     def _run(self, x: np.ndarray, v: np.ndarray, dissipated: float, mem: tuple, common: tuple):
@@ -141,20 +140,20 @@ class Stepper:
                                 bool(system.velocity_dependent), *model)
 
     def _memory(self, state: State, blank: bool = False):
-        """Memory arrays of the loop from the numpy ``start`` (zeros when ``blank``)."""
-        shape = state.x.shape
+        """Memory arrays of the loop (coordinate-major) from the numpy ``start`` (zeros when ``blank``)."""
+        shape = state.x.shape[::-1]
         if self.loop == "splitting":
             mem_a, mem_p = np.zeros(shape, self.dtype), np.zeros(1)
             if state.memory:
-                mem_a[:], mem_p[0] = state.memory
+                mem_a.T[:], mem_p[0] = state.memory
             return mem_a, mem_p
         mem_x, mem_a, mem_p = np.zeros(shape, self.dtype), np.zeros(shape, self.dtype), np.zeros(1)
         if blank:
             return mem_x, mem_a, mem_p
         if self.loop == "verlet":
-            mem_x[:], mem_p[0] = state.memory
+            mem_x.T[:], mem_p[0] = state.memory
         elif self.loop == "leapfrog":
-            mem_x[:], mem_a[:], mem_p[0] = state.memory
+            mem_x.T[:], mem_a.T[:], mem_p[0] = state.memory
         return mem_x, mem_a, mem_p
 
     def _memory_tuple(self) -> tuple:
@@ -163,14 +162,20 @@ class Stepper:
         if self.loop == "splitting":
             if not (self.integrator.fsal and not self.system.velocity_dependent):
                 return ()
-            mem_a, mem_p = (np.array(m, np.float64) for m in self._mem)
-            return (mem_a, float(mem_p[0]))
-        mem_x, mem_a, mem_p = (np.array(m, np.float64) for m in self._mem)
+            mem_a, mem_p = self._mem
+            return (_particles(mem_a), float(mem_p[0]))
+        mem_x, mem_a, mem_p = self._mem
+        mem_x, mem_a = _particles(mem_x), _particles(mem_a)
         if self.loop == "verlet":
             return (mem_x, float(mem_p[0]))
         return (mem_x, mem_a, float(mem_p[0]))
 
 
-def _f64(a: np.ndarray) -> np.ndarray:
-    """Return ``a`` itself when it is float64, else a float64 copy."""
-    return a if a.dtype == np.float64 else a.astype(np.float64)
+def _rows(a: np.ndarray, dtype: np.dtype) -> np.ndarray:
+    """Return a new coordinate-major copy ``(dim, n)`` of ``a`` (n, dim): the loops' layout."""
+    return np.array(np.asarray(a).T, dtype=dtype, order="C")
+
+
+def _particles(a: np.ndarray) -> np.ndarray:
+    """Return a new particle-major float64 copy ``(n_particles, dim)`` of the loop's array ``a`` (dim, n)."""
+    return np.array(a.T, dtype=np.float64, order="C")
