@@ -3,6 +3,11 @@
 Usage::
 
     .venv/bin/python benchmarks/advance_ab.py [--before main] [--repeats 15] [--sizes 64 128 300]
+    .venv/bin/python benchmarks/advance_ab.py --loops REV ...
+
+``--loops`` instead compares the stepping loops: the old session's compiled loop is composed from
+revision ``REV``'s template ``mslab/fast/loops.py`` (one of coordinate-major memory, commit d3b807e
+or later), the spring kernel being this tree's in both.
 
 ``--before`` names a git revision whose ``mslab/effects/spring_kernels.py`` is loaded beside
 this tree's (from a temporary folder, as the module ``mslab._before_spring_kernels``) and
@@ -77,36 +82,67 @@ def old_springs(rev: str, folder: Path) -> type:
     return type("SpringsBefore", (Springs,), members)
 
 
-def compare(before: type, n: int, dtype: str, repeats: int) -> dict:
-    """Bitwise end states, then interleaved CPU times of the floor, the old and the new session."""
+def old_template(rev: str) -> str:
+    """Revision ``rev``'s template of the stepping loops (:func:`mslab.fast.compose._template`)."""
+    from mslab.fast import compose
+
+    text = subprocess.run(["git", "show", f"{rev}:mslab/fast/loops.py"], cwd=HERE.parent,
+                          capture_output=True, text=True, check=True).stdout
+    return text[: text.index(compose._MARKER)]
+
+
+def compare(before: type | str, n: int, dtype: str, repeats: int, sessions: int = 3) -> dict:
+    """Bitwise end states, then interleaved CPU times of the floor, the old and the new sessions.
+
+    ``before``: the old session's springs class, or the text of its loops' template. Each
+    variant gets ``sessions`` sessions, made alternately (old, new, old, ...): the placement of a
+    session's arrays in memory moves its time by up to 15 % (two sessions of the same code,
+    measured), so a variant's time per repeat is the mean over its sessions.
+    """
     import mslab
     from mslab import jit
     from mslab.effects import Springs
+    from mslab.fast import compose
 
-    sims = {}
-    for name in ("old", "new"):
-        scene = frame_cloth(n)
-        springs = next(e for e in scene.system.effects if isinstance(e, Springs))
-        if name == "old":
-            springs.__class__ = before
-        sims[name] = mslab.Simulation(scene, "symplectic_euler", dt=DT, backend="numba", threads=1,
-                                      dtype=dtype, check_stability=False)
+    sims: dict[str, list] = {"old": [], "new": []}
+    for _ in range(sessions):
+        for name in ("old", "new"):
+            scene = frame_cloth(n)
+            springs = next(e for e in scene.system.effects if isinstance(e, Springs))
+            if name == "old" and not isinstance(before, str):
+                springs.__class__ = before
+            template, cached = compose._template, dict(compose._modules)
+            if name == "old" and isinstance(before, str):  # the loop is composed as the session starts
+                compose._template, compose._modules = (lambda: before), {}
+            try:
+                sims[name].append(mslab.Simulation(scene, "symplectic_euler", dt=DT, backend="numba",
+                                                   threads=1, dtype=dtype, check_stability=False))
+            finally:
+                compose._template, compose._modules = template, cached
     m = springs.i.size
     floor = floor_kernel()
     a = np.random.default_rng(0).uniform(0.5, 2.0, m).astype(dtype)
     out = np.empty_like(a)
-    calls = {"floor": lambda: floor(a, out), "old": lambda: sims["old"].advance(SUBSTEPS),
-             "new": lambda: sims["new"].advance(SUBSTEPS)}
-    steps = {"floor": 1, "old": SUBSTEPS, "new": SUBSTEPS}
+    calls = {"floor": lambda: floor(a, out)}
+    steps = {"floor": 1}
+    for name, group in sims.items():
+        for q, sim in enumerate(group):
+            calls[f"{name}{q}"], steps[f"{name}{q}"] = (lambda sim=sim: sim.advance(SUBSTEPS)), SUBSTEPS
     with jit.threads(1):
         for call in calls.values():
             call()
-        bitwise = all(np.asarray(getattr(sims["old"].state, k)).tobytes()
-                      == np.asarray(getattr(sims["new"].state, k)).tobytes() for k in ("x", "v"))
+        bitwise = all(np.asarray(getattr(sims["old"][0].state, k)).tobytes()
+                      == np.asarray(getattr(sims["new"][0].state, k)).tobytes() for k in ("x", "v"))
         load_before = os.getloadavg()
-        times = interleaved(calls, steps, m, repeats)
-    return {"n": n, "springs": m, "dtype": dtype, "repeats": repeats, "bitwise_after_warm_up": bitwise,
+        per_session = interleaved(calls, steps, m, repeats)
+    times = {"floor": per_session["floor"]}
+    for name in sims:
+        rows = [per_session[f"{name}{q}"] for q in range(sessions)]
+        times[name] = [statistics.fmean(r[t] for r in rows) for t in range(repeats)]
+    return {"n": n, "springs": m, "dtype": dtype, "repeats": repeats, "sessions": sessions,
+            "bitwise_after_warm_up": bitwise,
             "ns_per_spring_step": {k: statistics.median(t) for k, t in times.items()},
+            "sessions_ns_per_spring_step": {k: statistics.median(t) for k, t in per_session.items()},
             "new_over_old": _ratio(times["new"], times["old"]),
             "new_over_floor": _ratio(times["new"], times["floor"]),
             "old_over_floor": _ratio(times["old"], times["floor"]),
@@ -116,6 +152,7 @@ def compare(before: type, n: int, dtype: str, repeats: int) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--before", default="main")
+    parser.add_argument("--loops", default=None, help="compare the loops' templates instead")
     parser.add_argument("--repeats", type=int, default=15)
     parser.add_argument("--sizes", type=int, nargs="+", default=[64, 128, 300])
     parser.add_argument("--dtypes", nargs="+", default=["float64", "float32"])
@@ -124,19 +161,21 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as folder:
         os.environ["MSLAB_CACHE_DIR"] = folder
         os.environ["NUMBA_CACHE_DIR"] = folder
-        before = old_springs(args.before, Path(folder))
+        before = old_template(args.loops) if args.loops else old_springs(args.before, Path(folder))
         for n in args.sizes:
             for dtype in args.dtypes:
                 row = compare(before, n, dtype, args.repeats)
                 rows.append(row)
                 ns, r, fl = row["ns_per_spring_step"], row["new_over_old"], row["new_over_floor"]
+                print("  sessions:", {k: round(t, 2) for k, t in row["sessions_ns_per_spring_step"].items()})
                 print(f"{n}x{n} {dtype}: bitwise {row['bitwise_after_warm_up']}, ns/spring-step old "
                       f"{ns['old']:.2f} new {ns['new']:.2f} floor {ns['floor']:.2f}; "
                       f"new/old {r['median']:.3f} "
                       f"({r['min']:.3f}-{r['max']:.3f}); new/floor {fl['median']:.2f} old/floor "
                       f"{row['old_over_floor']['median']:.2f}; load {row['load_average_before'][0]:.2f}-"
                       f"{row['load_average_after'][0]:.2f}", flush=True)
-    doc = {"machine": machine(), "before": args.before, "rows": rows}
+    what = "loops" if args.loops else "spring kernel"
+    doc = {"machine": machine(), "before": args.loops or args.before, "what": what, "rows": rows}
     (HERE / "advance_ab.json").write_text(json.dumps(doc, indent=1) + "\n")
 
 

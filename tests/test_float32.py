@@ -1,8 +1,9 @@
 """``dtype="float32"``: the compiled loop in single precision (issue 38, item 2).
 
 Error model (docs/precision.md, "float32"): a stable one-step method rounds every stored
-coordinate once per step (relative ``eps32 / 2``) and forms the spring forces in float32 (a
-few roundings of ``h^2 |a|``, far below ``|x|``); a stable step carries an error on without
+coordinate once per step (relative ``eps32 / 2``), its increments a few times (relative to
+``h |v|`` and ``h^2 |a|``, far below ``|x|``) and forms the spring forces in float32; a
+stable step carries an error on without
 growth, so after ``N`` steps ``max |x32 - x64| <= N eps32 X`` (``X`` the largest coordinate of
 the run), and the ledger ``K + U + D`` moves by at most ``N eps32`` of the energy scale. Verlet
 is left out of that bound (its velocity is a difference of rounded positions over ``h``:

@@ -1,28 +1,25 @@
 """The compiled stepping loops: one per method family, generic over the scene's effects.
 
-This file is a *template* of plain functions: :mod:`mslab.fast.compose` copies its text into a
-module generated for one combination of effect kernels, appends the definition of
-``scene_forces`` (the sum of the effects' own ``kernel`` functions) and compiles every
-function of it with :func:`mslab.jit.compiled` (``error_model="numpy"``), so numba inlines
-the kernels into the loops and caches them. Nothing here knows any effect. Arrays are
-C-contiguous and *coordinate-major*: ``x``, ``v`` of shape ``(dim, n_particles)``;
-``scene_forces`` hands the kernels their transposes (``(n_particles, dim)`` views, numba's
-layout "F"), so a kernel indexes ``x[p, c]`` as everywhere while a run of springs streams
-each coordinate without shuffles (:mod:`mslab.effects.spring_kernels`; forces bitwise those of
-particle-major memory). Saved samples are particle-major. Float64, or float32: the state,
-forces and buffers in float32; the step's scalars, the samples and the dissipated work
-float64, so a particle update is computed in float64 and rounded once when stored.
+A *template* of plain functions: :mod:`mslab.fast.compose` copies it into a module generated for
+one combination of effect kernels, appends ``scene_forces`` (the sum of the effects' ``kernel``
+functions) and compiles each function with :func:`mslab.jit.compiled` (``error_model="numpy"``):
+numba inlines the kernels into the loops and caches them. Nothing here knows any effect.
 
-The loops are lean: forces accumulate into a scratch array ``f`` that holds the scene's
-constant forces ``f0`` between uses (gravity: :class:`mslab.fast.ForceModel`), restored by each
-pass that reads ``f`` (no zeroing, no gravity pass); a kick, the following drift and the
-blow-up test share one pass over the particles, which forms ``a = f / m`` without storing it.
-On a big scene that pass of the splitting loop (:func:`_particle_pass`) runs on all threads over
-the parts ``cuts`` (:func:`mslab.fast.model.particle_cuts`): every entry gets the same operations
-on any thread, so the states are bitwise the same on any number of threads. Particle passes
-run on flat views, with the inverse mass tiled per coordinate (``w``), branch-free and without
-zero-division checks (``error_model="numpy"``): numba vectorises them, which it does not do for
-two-index loops (8x faster on a 300 x 300 cloth).
+**Memory.** Arrays are C-contiguous and *coordinate-major*, ``x``, ``v`` of shape ``(dim,
+n_particles)``; ``scene_forces`` hands the kernels the transposes (``(n_particles, dim)`` views,
+numba's layout "F"), so a kernel indexes ``x[p, c]`` while a run of springs streams each
+coordinate without shuffles (:mod:`mslab.effects.spring_kernels`; forces bitwise those of
+particle-major memory). Saved samples are particle-major. Float64, or float32: state, forces,
+buffers and particle updates in float32 (the step's scalars ``dt a_ij`` rounded to it); the
+dissipated work and the samples float64.
+
+**Passes.** Forces accumulate into a scratch ``f`` that holds the constant forces ``f0`` between
+uses (:class:`mslab.fast.ForceModel`), restored by the pass that reads ``f``; a kick, the next
+drift and the blow-up test are one pass, which forms ``a = f / m`` without storing it. Passes run
+on flat views with the inverse mass tiled per coordinate (``w``), branch-free: numba vectorises
+them (8x a two-index loop on a 300 x 300 cloth). On a big scene the splitting loop's pass
+(:func:`_particle_pass`) runs on all threads over the parts ``cuts``
+(:func:`mslab.fast.model.particle_cuts`); each entry gets the same operations on any thread.
 
 Every loop returns ``(step, k, dissipated, status, n_force)``: the last step taken, the next free
 save slot, :data:`OK` or :data:`BLOWUP` (``step`` blew up), and the number of force evaluations;
@@ -41,10 +38,7 @@ VERLET = 2
 LEAPFROG = 3
 
 #: the particle passes of the splitting loop (:func:`_particle_pass`)
-KICK = 0
-KICK_KEEP = 1
-KICK_WITH = 2
-DRIFT = 3
+KICK, KICK_KEEP, KICK_WITH, DRIFT = 0, 1, 2, 3
 
 
 def rhs(x, v, a, w, f0, params):
@@ -169,6 +163,8 @@ def run_explicit_rk(x, v, dissipated, A, b, dt, step, n_steps, saved, k, xs, vs,
     kxf = kx.reshape((s, size))
     kvf = kv.reshape((s, size))
     power = np.empty(s)
+    hA = (dt * A).astype(x.dtype)  # dt A and dt b in the state's precision (the particle updates')
+    hb = (dt * b).astype(x.dtype)
     n_force = 0
     while step < n_steps:
         step += 1
@@ -177,7 +173,7 @@ def run_explicit_rk(x, v, dissipated, A, b, dt, step, n_steps, saved, k, xs, vs,
                 sx = xf[e]
                 sv = vf[e]
                 for r in range(st):
-                    h = dt * A[st, r]
+                    h = hA[st, r]
                     if h != 0.0:
                         sx = sx + h * kxf[r, e]
                         sv = sv + h * kvf[r, e]
@@ -197,7 +193,7 @@ def run_explicit_rk(x, v, dissipated, A, b, dt, step, n_steps, saved, k, xs, vs,
             sx = xf[e]
             sv = vf[e]
             for st in range(s):
-                h = dt * b[st]
+                h = hb[st]
                 if h != 0.0:
                     sx = sx + h * kxf[st, e]
                     sv = sv + h * kvf[st, e]
@@ -228,7 +224,7 @@ def _kick_rk(x, xf, vf, vi, f, f0f, w, acc, pws, kA, kb, h, hd, limit, params):
         for e in range(size):
             sv = vf[e]
             for u in range(r):
-                hu = h * kA[r, u]
+                hu = xf.dtype.type(h * kA[r, u])
                 if hu != 0.0:
                     sv = sv + hu * acc[u, e]
             vif[e] = sv
@@ -244,7 +240,7 @@ def _kick_rk(x, xf, vf, vi, f, f0f, w, acc, pws, kA, kb, h, hd, limit, params):
     for e in range(size):
         vq = vf[e]
         for r in range(ns):
-            hb = h * kb[r]
+            hb = xf.dtype.type(h * kb[r])
             if hb != 0.0:
                 vq = vq + hb * acc[r, e]
         vf[e] = vq
@@ -281,31 +277,33 @@ def run_splitting(x, v, dissipated, drift, kick, reuse, kA, kb, mem_a, mem_p,
     pws = np.empty(ns)
     vi = np.empty((dim, n) if ns > 1 else (dim, 0), x.dtype)
     n_force = 0
+    zero = x.dtype.type(0.0)
     p_last = mem_p[0]
     while step < n_steps:
         step += 1
         work = 0.0
         bad = 0
         if drift[0] != 0.0:
-            _particle_pass(DRIFT, xf, vf, ff, f0f, w, maf, 0.0, dt * drift[0], limit, cuts)
+            _particle_pass(DRIFT, xf, vf, ff, f0f, w, maf, zero, x.dtype.type(dt * drift[0]), limit, cuts)
         for st in range(nk):
-            h = dt * kick[st]
-            hd = dt * drift[st + 1]
+            h = dt * kick[st]  # (float64: the dissipated work's weight)
+            hs = x.dtype.type(h)  # the updates' steps in the state's precision
+            hd = x.dtype.type(dt * drift[st + 1])
             last = st == nk - 1
             if st == 0 and reuse:  # a from the previous step's last kick
                 pw = p_last
-                bad = _particle_pass(KICK_WITH, xf, vf, ff, f0f, w, maf, h, hd, limit, cuts)
+                bad = _particle_pass(KICK_WITH, xf, vf, ff, f0f, w, maf, hs, hd, limit, cuts)
             elif ns > 1:  # velocity-dependent forces: one step of (kA, kb) in v, x fixed
                 pw, bad = _kick_rk(x, xf, vf, vi, f, f0f, w, acc, pws, kA, kb, h, hd, limit, params)
                 n_force += ns
             elif reuse and last:
                 pw = scene_forces(x, v, f, params)
                 n_force += 1
-                bad = _particle_pass(KICK_KEEP, xf, vf, ff, f0f, w, maf, h, hd, limit, cuts)
+                bad = _particle_pass(KICK_KEEP, xf, vf, ff, f0f, w, maf, hs, hd, limit, cuts)
             else:  # the explicit kick: forces, then kick + drift + test in one pass
                 pw = scene_forces(x, v, f, params)
                 n_force += 1
-                bad = _particle_pass(KICK, xf, vf, ff, f0f, w, maf, h, hd, limit, cuts)
+                bad = _particle_pass(KICK, xf, vf, ff, f0f, w, maf, hs, hd, limit, cuts)
             work += h * pw
             p_last = pw
         dissipated = dissipated + work
@@ -347,13 +345,15 @@ def run_two_step(method, x, v, dissipated, mem_x, mem_a, mem_p, dt, step, n_step
     vg = v if verlet else np.empty((dim, n), x.dtype)
     xgf = xg.reshape(size)
     vgf = vg.reshape(size)
+    ty = x.dtype.type  # the updates' constants in the state's precision
+    two, hs, dt2, half = ty(2.0), ty(dt), ty(dt * dt), ty(0.5 * dt)
     n_force = 0
     while step < n_steps:
         step += 1
         if not verlet:
             for e in range(size):
-                xgf[e] = xf[e] + dt * mxf[e]
-                vgf[e] = mxf[e] + (0.5 * dt) * maf[e] if velocity_dependent else mxf[e]
+                xgf[e] = xf[e] + hs * mxf[e]
+                vgf[e] = mxf[e] + half * maf[e] if velocity_dependent else mxf[e]
         pw = scene_forces(xg, vg, f, params)
         n_force += 1
         bad = 0
@@ -362,8 +362,8 @@ def run_two_step(method, x, v, dissipated, mem_x, mem_a, mem_p, dt, step, n_step
                 aq = w[e] * ff[e]
                 ff[e] = f0f[e]
                 xo = xf[e]
-                x_new = 2.0 * xo - mxf[e] + (dt * dt) * aq
-                vq = (x_new - xo) / dt + (0.5 * dt) * aq
+                x_new = two * xo - mxf[e] + dt2 * aq
+                vq = (x_new - xo) / hs + half * aq
                 vf[e] = vq
                 mxf[e] = xo
                 xf[e] = x_new
@@ -375,9 +375,9 @@ def run_two_step(method, x, v, dissipated, mem_x, mem_a, mem_p, dt, step, n_step
                 ff[e] = f0f[e]
                 xq = xgf[e]
                 xf[e] = xq
-                vq = mxf[e] + (0.5 * dt) * aq
+                vq = mxf[e] + half * aq
                 vf[e] = vq
-                mxf[e] = mxf[e] + dt * aq
+                mxf[e] = mxf[e] + hs * aq
                 maf[e] = aq
                 bad += 0 if (abs(xq) < limit and vq - vq == 0.0) else 1
             dissipated = dissipated + 0.5 * dt * (mem_p[0] + pw)
@@ -391,9 +391,7 @@ def run_two_step(method, x, v, dissipated, mem_x, mem_a, mem_p, dt, step, n_step
 
 
 # -- scene forces (generated) --
-# mslab.fast.compose cuts the template here and appends the scene's own ``scene_forces``:
-# ``f += sum_e kernel_e(x, v, f, *params[e])`` over the effects that are not constant,
-# returning the summed dissipated power.
+# mslab.fast.compose cuts the template here and appends the scene's ``scene_forces``.
 def scene_forces(x, v, f, params):
     """Stand in for the scene's forces in the template (never compiled)."""
     raise NotImplementedError("mslab.fast.loops is a template; use mslab.fast.compose")
