@@ -294,12 +294,14 @@ def test_kernel_equals_numpy(cls, dim):
                 assert p.dtype in (np.float64, np.int64) and p.flags.c_contiguous, (cls.name, p.dtype)
             else:
                 assert isinstance(p, int | float) and not isinstance(p, bool)
-        f = np.zeros_like(x)
-        power = kernel(x, v, f, *params)
         f_ref, p_ref = effect.force_and_power(x, v)
         scale = max(1.0, float(np.max(np.abs(f_ref))))
-        assert np.max(np.abs(f - f_ref)) <= 1e-12 * scale
-        assert abs(power - p_ref) <= 1e-12 * max(1.0, abs(p_ref))
+        for rows in (False, True):  # particle-major memory, and the compiled loops' coordinate rows
+            xk, vk = (np.ascontiguousarray(a.T).T for a in (x, v)) if rows else (x, v)
+            f = np.zeros_like(xk)  # (the same layout as xk)
+            power = kernel(xk, vk, f, *params)
+            assert np.max(np.abs(f - f_ref)) <= 1e-12 * scale, (cls.name, rows)
+            assert abs(power - p_ref) <= 1e-12 * max(1.0, abs(p_ref))
 
 
 def test_springs_kernel_zero_length_and_undamped():
