@@ -100,8 +100,10 @@ def batches(i: np.ndarray, j: np.ndarray, n_particles: int, **sizes: int) -> tup
 #: shortest run worth its own vectorised loop (its set-up costs): measured on cloths, rows of
 #: 39 springs took 0.94 of the plain loop's time, rows of 49 0.60 (AVX-512, 2026-11-26)
 MIN_RUN = 48
-#: longest run in one go: its forces (3 x 8 bytes per spring) stay in the first-level cache
-MAX_RUN = 1024
+#: longest run in one go: its buffers (pair forces and powers, 4 x 8 bytes per spring) stay in a
+#: second-level cache of 256 KiB. Fewer, longer runs cost less set-up per evaluation: 4096 took
+#: 0.91-0.99 of 1024's time on the 64² and 128² cloths (8 sessions each, benchmarks/RESULTS.md)
+MAX_RUN = 4096
 
 
 def segments(i: np.ndarray, j: np.ndarray, ranges: np.ndarray, min_run: int = MIN_RUN,
@@ -159,8 +161,8 @@ def gap_springs(i: np.ndarray, j: np.ndarray, ranges: np.ndarray, phases: np.nda
 
     A mesh generator lists a row's springs ``(a + s, b + s)`` and then the next row's, which
     starts a few particles further on: the run breaks at every row's end, and a 64 x 64 cloth
-    is 262 runs of about 63 springs, each paying a run's set-up (a tenth of its time,
-    ``benchmarks/RESULTS.md``). Where two consecutive springs of a batch have the same offset
+    is 256 runs, most of them rows of about 63 springs, each paying a run's set-up (a tenth of
+    its time, ``benchmarks/RESULTS.md``). Where two consecutive springs of a batch have the same offset
     ``b - a > 0`` and ``i`` jumps by ``2 .. max_gap + 1``, each the end or start of a row of at
     least :data:`MIN_ROW` consecutive springs ``(a + s, b + s)``, the springs between them that the
     mesh does not have (``(a + s, b + s)`` for the skipped ``s``) are inserted as *gap
@@ -170,7 +172,7 @@ def gap_springs(i: np.ndarray, j: np.ndarray, ranges: np.ndarray, phases: np.nda
     ``+0.0`` where they round to a zero (:class:`mslab.fast.ForceModel`), and an IEEE sum or
     difference is ``-0.0`` only where its first operand already is. Their powers are
     ``+0.0`` too (the dissipated power changes by round-off: another order of its sum). The
-    rows then form one run (a 64 x 64 cloth: 24 runs instead of 262, 1.3 % gap springs), and
+    rows then form one run (a 64 x 64 cloth: 6 runs instead of 256, 1.3 % gap springs), and
     each particle still receives its springs' forces in the same order: the forces are
     bitwise those of the table without gap springs.
 
