@@ -18,7 +18,6 @@ combination of kernels, then compiles here function by function). So all of them
 from __future__ import annotations
 
 import functools
-import hashlib
 import inspect
 import os
 import sys
@@ -27,6 +26,7 @@ from collections.abc import Callable, Iterator
 from contextlib import AbstractContextManager, contextmanager
 from typing import Any
 
+from mslab.compiled_sources import sources_digest
 from mslab.interrupts import protected
 
 #: compiled functions of this process: (function, options) -> numba dispatcher
@@ -234,49 +234,6 @@ def _quick_cache_class() -> type:
             return (*super()._index_key(sig, codegen), sources_digest(self._py_func))
 
     return QuickCache
-
-
-def sources_digest(function: Callable) -> str:
-    """Return a hash of the source files of the mslab modules whose code ``function`` runs.
-
-    Numba keys its cache by the function's own bytecode and drops it when the function's own
-    file changes, never when a callee's does: an edited helper in another module (``mslab.lanes``
-    under ``lane_sum``, the spring kernel under a generated loop) left the old machine code in
-    use. Part of the cache key of every function :func:`compiled` makes (:func:`_quick_cache_class`):
-    the modules of the function and of every mslab function it names, transitively (compiled
-    twins followed to their Python source; generated modules ``mslab_fast_*`` too).
-    """
-    modules: set[str] = set()
-    seen: set[int] = set()
-    todo = [function]
-    while todo:
-        item = todo.pop()
-        fn = getattr(item, "py_func", item)
-        if id(fn) in seen or not inspect.isfunction(fn):
-            continue
-        seen.add(id(fn))
-        modules.add(fn.__module__)
-        codes = [fn.__code__]
-        while codes:  # the names of nested code (inner functions, comprehensions) too
-            code = codes.pop()
-            codes += [c for c in code.co_consts if isinstance(c, types.CodeType)]
-            for name in code.co_names:
-                value = fn.__globals__.get(name)
-                value = getattr(value, "py_func", value)
-                if inspect.isfunction(value) and str(value.__module__).startswith("mslab"):
-                    todo.append(value)
-    return "-".join(_file_digest(name) for name in sorted(modules))
-
-
-@functools.cache
-def _file_digest(module: str) -> str:
-    """Return the sha256 of the source file of the imported ``module`` ("" without one), once per process."""
-    path = getattr(sys.modules.get(module), "__file__", None)
-    try:
-        with open(path, "rb") as source:  # type: ignore[arg-type]
-            return hashlib.sha256(source.read()).hexdigest()[:16]
-    except (OSError, TypeError):
-        return ""
 
 
 def thread_count(requested: int | None = None) -> int | None:

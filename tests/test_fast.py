@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -364,33 +363,3 @@ def test_auto_decides_by_the_run_alone_not_by_history():
     mslab.simulate(scene, method, dt=1e-3, t_end=0.01, backend="numba")  # loaded now
     again = tuple(fast.worth_compiling(scene.system, method, n) for n in (500, 10**6))
     assert again == (short, long) == (False, True)
-
-
-@pytest.mark.slow
-def test_an_edited_helper_module_is_compiled_again(tmp_path):
-    """Numba alone keeps a function's cached code when only a callee's file changes: mslab does not.
-
-    A copy of mslab compiles ``lane_sum`` (its lanes are :mod:`mslab.lanes`, another module); after
-    an edit of the copy's ``lanes.py`` that doubles every value added, a new process compiles
-    again and returns twice the sum (numba's own key kept the stale machine code: 16.0).
-    """
-    import shutil
-
-    import mslab as original
-
-    shutil.copytree(Path(original.__file__).parent, tmp_path / "copy" / "mslab",
-                    ignore=shutil.ignore_patterns("__pycache__"))
-    code = (f"import sys; sys.path.insert(0, {str(tmp_path / 'copy')!r}); "  # (before the working directory)
-            "import numpy as np, mslab; from mslab.jit import compiled; "
-            "from mslab.effects.spring_kernels import lane_sum; f = compiled(lane_sum); "
-            f"assert mslab.__file__.startswith({str(tmp_path)!r}); "
-            "print(f(np.ones(16)), sum(f.stats.cache_hits.values()), sum(f.stats.cache_misses.values()))")
-    env = {"MSLAB_CACHE_DIR": str(tmp_path / "gen"), "NUMBA_CACHE_DIR": str(tmp_path / "numba")}
-    assert _in_fresh_process(code, env) == "16.0 0 1"  # compiled
-    assert _in_fresh_process(code, env) == "16.0 1 0"  # loaded
-    lanes = tmp_path / "copy" / "mslab" / "lanes.py"
-    text = lanes.read_text()
-    add = "builder.fadd(builder.load(lanes), eight)"
-    assert text.count(add) == 1  # (the vector addition of the lanes)
-    lanes.write_text(text.replace(add, "builder.fadd(builder.fadd(builder.load(lanes), eight), eight)"))
-    assert _in_fresh_process(code, env) == "32.0 0 1"  # compiled again, the edit in force

@@ -22,7 +22,7 @@ each time), so the composition is a generated source file. Its name is a hash of
 text, which includes a hash of each kernel's module (the kernel and the helpers it calls,
 :func:`mslab.jit.compiled`): editing a kernel, a helper or the template
 gives a new module and a fresh compile. A helper in another module (``mslab.lanes``) is in the
-cache key of every compiled function that calls it (:func:`mslab.jit.sources_digest`): numba
+cache key of every compiled function that calls it (:func:`mslab.compiled_sources.sources_digest`): numba
 alone would not notice an edited callee.
 Files go to ``$MSLAB_CACHE_DIR`` or ``$XDG_CACHE_HOME/mslab`` (``~/.cache/mslab``), and
 numba's cache to a ``__pycache__`` beside them (or ``$NUMBA_CACHE_DIR``).
