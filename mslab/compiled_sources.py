@@ -3,7 +3,7 @@
 :func:`sources_digest` is part of numba's cache key for each function :func:`mslab.jit.compiled`
 makes (``mslab.jit._quick_cache_class``). Numba alone keys its cache by a function's own bytecode
 and drops it when the function's own file changes, never when a callee's file does.
-``tests/test_fast.py::test_an_edited_helper_module_is_compiled_again`` holds it.
+``tests/test_compiled_cache.py`` holds it (an edited helper module, an edit while a process runs).
 """
 
 from __future__ import annotations
