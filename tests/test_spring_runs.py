@@ -92,7 +92,7 @@ def test_runs_give_the_plain_loops_bits(seed, dim, damped, pieces, parallel, uni
         k[:: max(1, m // 3)] = 7.0
     kernel = compiled(spring_kernel)
     plain = (i, j, k, rest, c, int(damped), *segments(i, j, ranges), phases, np.zeros(0, np.int64))
-    take, step, ranges_g = gap_springs(i, j, ranges, phases)  # rows joined by gap springs
+    take, step, ranges_g = gap_springs(i, j, ranges)  # rows joined by gap springs
     ig, jg, kg, cg = i[take] + step, j[take] + step, k[take], c[take]
     bounds, run, batch_segments = segments(ig, jg, ranges_g)
     run = run_flags(bounds, run, kg, cg)
@@ -270,18 +270,55 @@ def test_gap_springs_join_a_cloths_rows_and_exert_nothing(dtype):
     assert not np.array_equal(out["gaps as springs"][0], out["plain"][0])
 
 
-def test_gap_springs_only_where_one_thread_runs_the_batch():
-    """A batch of a parallel phase gets none (its gap springs could touch another batch's particles)."""
+def test_gap_springs_fill_each_batch_up_to_its_last_spring():
     i = np.arange(200, dtype=np.int64)
     i = i[i % 10 != 9]  # rows of 9 springs (a + s, a + s + 1), one particle skipped between rows
     j = i + 1
-    take, step, ranges = gap_springs(i, j, np.array([0, 90, 180]), np.array([0, 1, 2]))
+    take, step, ranges = gap_springs(i, j, np.array([0, 90, 180]))
     assert np.array_equal(take[step == 0], np.arange(i.size))  # every spring, in order
     skipped = np.arange(9, 190, 10)
     assert np.array_equal((i[take] + step)[step > 0], skipped[skipped != 99])  # not after a batch's last
     assert ranges.tolist() == [0, 99, 198]
-    take, step, ranges = gap_springs(i, j, np.array([0, 90, 180]), np.array([0, 2]))  # both in one phase
-    assert not np.any(step) and ranges.tolist() == [0, 90, 180]
+
+
+def touched(i: np.ndarray, j: np.ndarray, first: int, last: int) -> set[int]:
+    return set(i[first:last].tolist()) | set(j[first:last].tolist())
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), pieces=st.integers(1, 12))
+def test_gap_springs_touch_no_particle_of_another_batch_of_their_phase(seed, pieces):
+    """The batches of a phase run at once on several threads: with their gap springs (whose
+    ``f + 0.0`` reads and writes force entries) they must still share no particle."""
+    rng = np.random.default_rng(seed)
+    n = 4 * MAX_RUN
+    i, j = spring_table(rng, n, pieces)
+    order, ranges, phases = batches(i, j, n, min_parallel=64, per_batch=256)
+    take, step, ranges_g = gap_springs(i[order], j[order], ranges)
+    ig, jg = i[order][take] + step, j[order][take] + step
+    for p in range(phases.size - 1):
+        seen: set[int] = set()
+        for r in range(phases[p], phases[p + 1]):
+            mine = touched(ig, jg, ranges_g[r], ranges_g[r + 1])
+            assert not mine & seen
+            seen |= mine
+
+
+def test_a_cloth_in_parallel_batches_is_joined_into_a_few_runs():
+    """The 300 x 300 cloth's rows, cut by 32 blocks of particles, are joined by gap springs in
+    every batch (two phases on all threads): a few runs per batch, no plain segment."""
+    springs = next(e for e in generators.cloth(300, 300).system.effects if isinstance(e, Springs))
+    i, j, *_, bounds, run, batch_segments, phases, gaps = springs.kernel_params()
+    assert phases.tolist() == [0, 16, 32, 33]
+    assert gaps.size > 0 and np.all(run > 0)
+    assert np.diff(batch_segments).max() <= 6  # one run per kind of spring (pieces of <= MAX_RUN)
+    for p in range(phases.size - 1):
+        seen: set[int] = set()
+        for r in range(phases[p], phases[p + 1]):
+            first, last = bounds[batch_segments[r]], bounds[batch_segments[r + 1]]
+            mine = touched(i, j, first, last)
+            assert not mine & seen
+            seen |= mine
 
 
 @settings(max_examples=50, deadline=None)
@@ -302,12 +339,11 @@ def test_gap_springs_join_rows_only():
     joining them would make most of the table gap springs (an outside check found 3 per spring)."""
     ropes = np.concatenate([np.arange(r, 4000 - 4, 4) for r in range(4)])  # (p, p + 4), rope by rope
     rails = np.arange(0, 2000, 2)  # (2k, 2k + 2)
-    one_batch = np.array([0, 1])
     for i, offset in ((ropes, 4), (rails, 2)):
-        _, step, _ = gap_springs(i, i + offset, np.array([0, i.size]), one_batch)
+        _, step, _ = gap_springs(i, i + offset, np.array([0, i.size]))
         assert not np.any(step)
     short = np.concatenate([np.arange(10 * r, 10 * r + 7) for r in range(20)])  # rows of 7 < MIN_ROW
-    _, step, _ = gap_springs(short, short + 1, np.array([0, short.size]), one_batch)
+    _, step, _ = gap_springs(short, short + 1, np.array([0, short.size]))
     assert not np.any(step)
 
 

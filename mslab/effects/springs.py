@@ -291,7 +291,7 @@ class Springs(Effect):
         """
         if self._batched is None:
             order, ranges, phases = batches(self.i, self.j, self.n)
-            take, step, ranges = gap_springs(self.i[order], self.j[order], ranges, phases)
+            take, step, ranges = gap_springs(self.i[order], self.j[order], ranges)
             order = order[take]
             i, j = self.i[order] + step, self.j[order] + step
             bounds, run, batch_segments = segments(i, j, ranges)
