@@ -122,6 +122,7 @@ def _timed(fn, *args) -> float:
 def compare(wp, n: int, repeats: int, frames: int) -> dict:
     """Per-frame seconds of mslab (public API, defaults), Warp f64 and f32; ratios per repeat."""
     import mslab
+    from mslab.effects import Springs
 
     scene = frame_cloth(n)
     sim = mslab.Simulation(scene, "symplectic_euler", dt=DT)
@@ -161,7 +162,7 @@ def compare(wp, n: int, repeats: int, frames: int) -> dict:
     ratios_1 = [m / w for m, w in zip(rows["mslab_1_thread"], rows["warp64"], strict=True)]
     med = {key: statistics.median(vals) for key, vals in rows.items()}
     return {"n": n, "n_particles": scene.system.n_particles,
-            "n_springs": int(sum(e.kernel_items(0) for e in scene.system.effects if e.internal)),
+            "n_springs": int(sum(e.i.size for e in scene.system.effects if isinstance(e, Springs))),
             "frames_per_repeat": frames, "repeats": repeats, "compiled": sim.compiled,
             "max_rel_difference_x": worst,
             "frame_s": med, "ratio_mslab_warp64_median": statistics.median(ratios),
