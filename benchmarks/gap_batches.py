@@ -42,14 +42,13 @@ from benchmarks.suite import machine  # noqa: E402
 
 def without_parallel_gaps(gap_springs):
     """``gap_springs`` under the old rule: no gap spring in a batch of a phase of several batches."""
-    from mslab.effects.spring_batches import batches
-
     def old(i, j, ranges, *args, **kwargs):
         take, step, new_ranges = gap_springs(i, j, ranges, *args, **kwargs)
-        _, _, phases = batches(i, j, int(max(i.max(), j.max())) + 1)
+        blocks = ranges.size - 2  # B blocks: batches 0 .. B-1 in two phases, then the far batch
         parallel = np.zeros(ranges.size - 1, dtype=bool)
-        for p in range(phases.size - 1):
-            parallel[phases[p]:phases[p + 1]] = phases[p + 1] - phases[p] > 1
+        if blocks > 1:  # (one block: a single batch, alone; see spring_batches.batches)
+            parallel[: (blocks + 1) // 2] = (blocks + 1) // 2 > 1
+            parallel[(blocks + 1) // 2: blocks] = blocks // 2 > 1
         batch = np.searchsorted(new_ranges, np.arange(take.size), side="right") - 1
         keep = (step == 0) | ~parallel[batch]
         kept = np.concatenate([[0], np.cumsum(keep)])

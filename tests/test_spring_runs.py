@@ -285,14 +285,67 @@ def touched(i: np.ndarray, j: np.ndarray, first: int, last: int) -> set[int]:
     return set(i[first:last].tolist()) | set(j[first:last].tolist())
 
 
-@settings(max_examples=40, deadline=None)
+def mesh_rows(rng: np.random.Generator, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
+    """A grid's springs listed row by row, each row's kinds (offsets) in a random order, a few
+    particles skipped: rows of one offset meet across a row's end (gap springs join them), and
+    rows of two offsets meet a particle or two apart (they must not be joined)."""
+    n = width * height
+    offsets = np.array([1, 2, width - 1, width, width + 1, 2 * width])
+    i, j = [np.zeros(0, dtype=np.int64)], [np.zeros(0, dtype=np.int64)]
+    for r in range(height):
+        for d in rng.permutation(offsets)[: rng.integers(1, offsets.size + 1)]:
+            a = r * width + np.flatnonzero(rng.random(width) > 0.05)
+            a = a[a + d < n]
+            i.append(a)
+            j.append(a + d)
+    return np.concatenate(i), np.concatenate(j)
+
+
+def random_tables(rng: np.random.Generator, pieces: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """Either :func:`spring_table` or :func:`mesh_rows`, with the number of particles."""
+    if pieces % 2:
+        n = 4 * MAX_RUN
+        return (*spring_table(rng, n, pieces), n)
+    width = int(rng.integers(MIN_RUN // 4, 3 * MIN_RUN))
+    height = int(rng.integers(20, 80))
+    return (*mesh_rows(rng, width, height), width * height)
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), pieces=st.integers(1, 12))
+def test_a_gap_spring_lies_between_the_springs_it_joins(seed, pieces):
+    """What makes gap springs safe in parallel batches: a gap spring's ``i`` lies strictly
+    between the ``i`` of the springs before and after it, and its ``j`` between theirs, so
+    in their blocks. Rows of two offsets meeting a particle apart are not joined."""
+    rng = np.random.default_rng(seed)
+    i, j, n = random_tables(rng, pieces)
+    order, ranges, _ = batches(i, j, n, min_parallel=64, per_batch=256)
+    i, j = i[order], j[order]
+    take, step, _ = gap_springs(i, j, ranges)
+    gap = np.flatnonzero(step)
+    before, after = take[gap], take[gap] + 1  # the real springs around each gap spring
+    assert np.all(after < i.size)
+    assert np.all((i[before] < i[before] + step[gap]) & (i[before] + step[gap] < i[after]))
+    assert np.all((j[before] < j[before] + step[gap]) & (j[before] + step[gap] < j[after]))
+
+
+def test_rows_of_two_offsets_are_not_joined():
+    a = np.arange(0, 20)
+    b = np.arange(21, 41)  # one particle skipped; the second row's offset is 1, the first's 10
+    i, j = np.concatenate([a, b]), np.concatenate([a + 10, b + 1])
+    _, step, _ = gap_springs(i, j, np.array([0, i.size]))
+    assert not np.any(step)
+    _, step, _ = gap_springs(i, np.concatenate([a + 1, b + 1]), np.array([0, i.size]))  # one offset
+    assert step.tolist().count(1) == 1
+
+
+@settings(max_examples=60, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), pieces=st.integers(1, 12))
 def test_gap_springs_touch_no_particle_of_another_batch_of_their_phase(seed, pieces):
     """The batches of a phase run at once on several threads: with their gap springs (whose
     ``f + 0.0`` reads and writes force entries) they must still share no particle."""
     rng = np.random.default_rng(seed)
-    n = 4 * MAX_RUN
-    i, j = spring_table(rng, n, pieces)
+    i, j, n = random_tables(rng, pieces)
     order, ranges, phases = batches(i, j, n, min_parallel=64, per_batch=256)
     take, step, ranges_g = gap_springs(i[order], j[order], ranges)
     ig, jg = i[order][take] + step, j[order][take] + step

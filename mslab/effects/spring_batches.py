@@ -23,9 +23,9 @@ order of summation; ``tests/test_fast.py`` holds both to the numpy reference.)
 
 Each batch is then cut into *runs* (consecutive springs between consecutive particles, rows of
 a mesh) and plain stretches (:func:`segments`): a run's loop touches contiguous memory, so the
-compiler vectorises it, with the same sums in the same order. In a batch that runs alone, the
-rows of a mesh are first joined into longer runs by *gap springs* (:func:`gap_springs`), which
-exert no force.
+compiler vectorises it, with the same sums in the same order. The rows of a mesh are first
+joined into longer runs by *gap springs* (:func:`gap_springs`), which exert no force and stay
+within their batch's two blocks.
 
 Cost: ``O(n_springs log n_springs)`` once per scene (a stable sort), kept on the effect.
 """
@@ -179,8 +179,9 @@ def gap_springs(i: np.ndarray, j: np.ndarray, ranges: np.ndarray,
     A batch of a parallel phase gets them too: a gap spring's particles lie between those of the
     two springs it joins (``i`` between their ``i``, ``j`` between their ``j``), so in the blocks
     of its batch (a block is a range of particle indices, :func:`batches`), which no other batch
-    of the phase touches. A 300 x 300 cloth then has 192 runs instead of 1342 and takes
-    0.82-0.91 of the time (``benchmarks/RESULTS.md``).
+    of the phase touches (the two springs have one offset ``b - a``: rows of two offsets are not
+    joined). A 300 x 300 cloth then has 192 runs instead of 1342 and takes 0.82-0.91 of the
+    time (``benchmarks/RESULTS.md``).
 
     Returns, per spring of the new table, ``take`` (the spring of ``i, j`` it copies: its
     stiffness, rest length and damping; a gap spring copies the spring before it) and ``step``
