@@ -47,7 +47,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("effects/", ("effects/",)),
     ("errors, state, files, progress, threads, one jit helper",
      ("errors.py", "state.py", "files.py", "progress.py", "threads.py", "claims.py", "interrupts.py",
-      "jit.py", "compiled_sources.py", "lanes.py", "checks.py", "exercise_cells.py")),
+      "jit.py", "compiled_sources.py", "lanes.py", "kicks.py", "checks.py", "exercise_cells.py")),
 ]
 GRADING = "grading/"
 #: files of grading/ that talk to the library (the problems and their checks)

@@ -179,6 +179,9 @@ class Effect:
         One line for the scene-format table.
     kernel : callable or None
         The compiled kernel (a plain function, set with ``kernel = staticmethod(f)``).
+    kick_kernel : callable or None
+        A twin of ``kernel`` that also does the splitting loop's kick pass, returning ``(power,
+        bad)`` (:mod:`mslab.effects.spring_kick`); used where the kernel is the scene's last.
     may_touch : bool
         A contact force: zero until a particle touches, then a penalty (capability, see
         :meth:`contact_jacobian`).
@@ -197,6 +200,7 @@ class Effect:
     internal: ClassVar[bool] = False
     summary: ClassVar[str] = ""
     kernel: ClassVar[Callable[..., float] | None] = None
+    kick_kernel: ClassVar[Callable[..., tuple[float, int]] | None] = None
     may_touch: ClassVar[bool] = False
 
     velocity_dependent: bool = False

@@ -22,6 +22,7 @@ from mslab.effects.spring_kernels import (
     spring_jacobian_kernel,
     spring_kernel,
 )
+from mslab.effects.spring_kick import spring_kernel_kick
 from mslab.effects.spring_table import SPRING_KINDS, SpringTable
 from mslab.lanes import state_sums
 
@@ -115,6 +116,7 @@ class Springs(Effect):
     summary = ("Hooke springs with damping along each spring; one table per kind "
                "(`structural`, `shear`, `bend`)")
     kernel = staticmethod(spring_kernel)
+    kick_kernel = staticmethod(spring_kernel_kick)
 
     dissipative = False
     velocity_dependent = False

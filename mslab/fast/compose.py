@@ -12,6 +12,9 @@ template :mod:`mslab.fast.loops` (plain functions) followed by::
         power += _k0(x.T, v.T, f.T, *params[0])
         return power
 
+and ``scene_forces_kick`` (the forces, then the splitting loop's kick pass; where the last
+effect has a kick twin, ``Effect.kick_kernel``, that twin kicks each block of particles inside
+its own parallel loop, one launch of the threads fewer: :mod:`mslab.effects.spring_kick`),
 then imports it and replaces each of its functions by :func:`mslab.jit.compiled` of it
 (:func:`compile_module`; the kernels ``_k0, _k1, ...`` too), so numba compiles the loops
 with the kernels inlined, on first use, and caches them on disk: the one way mslab compiles.
@@ -41,6 +44,8 @@ from pathlib import Path
 from types import ModuleType
 
 _MARKER = "# -- scene forces (generated) --"
+#: the template's functions imported from other modules: compiled with its own
+_HELPERS = ("_kick",)
 _modules: dict[tuple, ModuleType] = {}
 
 
@@ -81,32 +86,61 @@ def _particle_pass(code, xf, vf, ff, f0f, w, maf, h, hd, limit, cuts):
 '''
 
 
-def source(kernels: Sequence[Callable], parallel: bool = False) -> str:
+#: use the last kernel's kick twin (``Effect.kick_kernel``) where it has one (False: the forces
+#: and the pass apart, as for every other scene; ``benchmarks/fused_kick.py`` compares them)
+FUSED_KICK = True
+
+
+def _import(kern: Callable, alias: str) -> str:
+    body = inspect.getsource(sys.modules[kern.__module__])  # the kernel and its helpers
+    digest = hashlib.sha256(body.encode()).hexdigest()[:16]
+    return f"from {kern.__module__} import {kern.__name__} as _py_{alias}  # source {digest}"
+
+
+def source(kernels: Sequence[Callable], parallel: bool = False, kick: Callable | None = None) -> str:
     """Return the generated module's text for these kernels, in summation order.
 
     ``parallel``: the particle passes may run in parts on all threads (a scene of
     :data:`mslab.fast.model.MIN_ENTRIES_PARALLEL` entries or more); else they are one part.
+    ``kick``: the last kernel's twin that also kicks (:mod:`mslab.effects.spring_kick`), or
+    None: ``scene_forces_kick`` is then ``scene_forces`` and the pass KICK.
     """
     lines = [_template().rstrip() + "\n", "" if parallel else _ONE_PART, "", f"{_MARKER}"]
-    for n, kern in enumerate(kernels):
-        body = inspect.getsource(sys.modules[kern.__module__])  # the kernel and its helpers
-        digest = hashlib.sha256(body.encode()).hexdigest()[:16]
-        lines.append(f"from {kern.__module__} import {kern.__name__} as _py_k{n}  # source {digest}")
+    lines += [_import(kern, f"k{n}") for n, kern in enumerate(kernels)]
+    if kick is not None:
+        lines.append(_import(kick, "ktwin"))
     lines += ["", "", "def scene_forces(x, v, f, params):",
               '    """``f += sum_e f_e`` (arrays (dim, n); kernels get transposes); returns the power."""',
               "    power = 0.0"]
     lines += [f"    power += _k{n}(x.T, v.T, f.T, *params[{n}])" for n in range(len(kernels))]
-    lines += ["    return power", ""]
+    lines += ["    return power", "", "",
+              "def scene_forces_kick(x, v, f, params, xf, vf, ff, f0f, w, maf, h, hd, limit, cuts, threads):",
+              '    """The forces, then the pass KICK; returns the power and the count of bad entries."""']
+    if kick is None:
+        lines += ["    power = scene_forces(x, v, f, params)",
+                  "    return power, _particle_pass(KICK, xf, vf, ff, f0f, w, maf, h, hd, limit, cuts)", ""]
+        return "\n".join(lines)
+    last = len(kernels) - 1
+    lines += ["    power = 0.0"]
+    lines += [f"    power += _k{n}(x.T, v.T, f.T, *params[{n}])" for n in range(last)]
+    lines += ["    if threads > 1:  # (on one thread the pass apart measured faster)",
+              f"        pw, bad = _ktwin(x.T, v.T, f.T, *params[{last}], xf, vf, ff, f0f, w, h, hd, limit)",
+              "    else:",
+              f"        pw, bad = _k{last}(x.T, v.T, f.T, *params[{last}]), -1",
+              "    if bad < 0:  # the twin did not kick (its springs are one batch): the pass",
+              "        bad = _particle_pass(KICK, xf, vf, ff, f0f, w, maf, h, hd, limit, cuts)",
+              "    power += pw",
+              "    return power, bad", ""]
     return "\n".join(lines)
 
 
 #: what the announcement of a compilation calls the template's functions
 WHAT = {"rhs": "the force loop", "run_explicit_rk": "the explicit Runge-Kutta loop",
         "run_splitting": "the splitting loop", "run_two_step": "the Verlet/leapfrog loop",
-        "scene_forces": "the sum of the forces"}
+        "scene_forces": "the sum of the forces", "scene_forces_kick": "the forces and the kick"}
 
 
-def compile_module(module: ModuleType, kernels: Sequence[Callable]) -> None:
+def compile_module(module: ModuleType, kernels: Sequence[Callable], kick: Callable | None = None) -> None:
     """Replace the functions of a generated module by :func:`~mslab.jit.compiled` of them.
 
     The template's functions get ``error_model="numpy"`` (no zero-division checks: numba
@@ -118,6 +152,12 @@ def compile_module(module: ModuleType, kernels: Sequence[Callable]) -> None:
     names = ", ".join(k.__name__.removesuffix("_kernel") for k in kernels) or "no"
     for n, kern in enumerate(kernels):
         setattr(module, f"_k{n}", compiled(kern, f"the {kern.__name__}"))
+    if kick is not None:
+        module._ktwin = compiled(kick, f"the {kick.__name__}")
+    for name in _HELPERS:  # the template's helpers from other modules (mslab.kicks)
+        value = getattr(module, name)
+        setattr(module, name, compiled(value, f"{value.__name__}, a helper of the stepping loops",
+                                       error_model="numpy"))
     own = [(name, value) for name, value in vars(module).items()
            if inspect.isfunction(value) and value.__module__ == module.__name__]
     # a function with a parallel loop is compiled from a copy of the module's globals
@@ -125,12 +165,13 @@ def compile_module(module: ModuleType, kernels: Sequence[Callable]) -> None:
     own.sort(key=lambda item: "prange" in item[1].__code__.co_names)
     for name, value in own:
         what = f"{WHAT.get(name, 'a helper of the stepping loops')} over the {names} kernels"
-        options = {} if name == "scene_forces" else {"error_model": "numpy"}
+        options = {} if name.startswith("scene_forces") else {"error_model": "numpy"}
         setattr(module, name, compiled(value, what, helpers=False, **options))
 
 
-def _key(kernels: Sequence[Callable], parallel: bool) -> tuple:
-    return tuple((k.__module__, k.__qualname__) for k in kernels) + (parallel,)
+def _key(kernels: Sequence[Callable], parallel: bool, kick: Callable | None = None) -> tuple:
+    twin = None if kick is None else (kick.__module__, kick.__qualname__)
+    return tuple((k.__module__, k.__qualname__) for k in kernels) + (parallel, twin)
 
 
 def _path(text: str) -> tuple[str, Path]:
@@ -138,15 +179,16 @@ def _path(text: str) -> tuple[str, Path]:
     return name, cache_dir() / f"{name}.py"
 
 
-def state(kernels: Sequence[Callable], parallel: bool = False) -> str:
+def state(kernels: Sequence[Callable], parallel: bool = False, kick: Callable | None = None) -> str:
     """Return where the loops for these kernels come from.
 
     ``"loaded"`` (in this process), ``"cached"`` (generated before: numba loads it from its
     cache) or ``"new"`` (numba compiles it: seconds).
     """
-    if _key(kernels, parallel) in _modules:
+    kick = kick if FUSED_KICK else None
+    if _key(kernels, parallel, kick) in _modules:
         return "loaded"
-    return "cached" if _path(source(kernels, parallel))[1].exists() else "new"
+    return "cached" if _path(source(kernels, parallel, kick))[1].exists() else "new"
 
 
 def _write_once(path: Path, text: str) -> None:
@@ -170,15 +212,18 @@ def _write_once(path: Path, text: str) -> None:
             os.unlink(tmp)
 
 
-def module_for(kernels: Sequence[Callable], parallel: bool = False) -> ModuleType:
+def module_for(kernels: Sequence[Callable], parallel: bool = False,
+               kick: Callable | None = None) -> ModuleType:
     """Return the compiled loops for these kernels (generated, written and imported once per process).
 
-    ``parallel``: with the particle passes in parts on all threads (:func:`source`).
+    ``parallel``: with the particle passes in parts on all threads; ``kick``: the last
+    kernel's kick twin, used unless :data:`FUSED_KICK` is off (:func:`source`).
     """
-    key = _key(kernels, parallel)
+    kick = kick if FUSED_KICK else None
+    key = _key(kernels, parallel, kick)
     if key in _modules:
         return _modules[key]
-    text = source(kernels, parallel)
+    text = source(kernels, parallel, kick)
     name, path = _path(text)
     if not path.exists() or path.read_text(encoding="utf-8") != text:
         _write_once(path, text)
@@ -186,6 +231,6 @@ def module_for(kernels: Sequence[Callable], parallel: bool = False) -> ModuleTyp
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module
     spec.loader.exec_module(module)
-    compile_module(module, kernels)
+    compile_module(module, kernels, kick)
     _modules[key] = module
     return module

@@ -20,6 +20,9 @@ on flat views with the inverse mass tiled per coordinate (``w``), branch-free: n
 them (8x a two-index loop on a 300 x 300 cloth). On a big scene the splitting loop's pass
 (:func:`_particle_pass`) runs on all threads over the parts ``cuts``
 (:func:`mslab.fast.model.particle_cuts`); each entry gets the same operations on any thread.
+Where the last kernel has a twin that kicks each block of particles as soon as its forces are
+complete (:func:`mslab.effects.spring_kick.spring_kernel_kick`), the explicit kick's forces and
+pass are one call, ``scene_forces_kick``, with one parallel launch fewer a step.
 
 Every loop returns ``(step, k, dissipated, status, n_force)``: the last step taken, the next free
 save slot, :data:`OK` or :data:`BLOWUP` (``step`` blew up), and the number of force evaluations;
@@ -31,6 +34,7 @@ from __future__ import annotations
 import numpy as np
 
 from mslab.jit import prange
+from mslab.kicks import kick as _kick
 
 OK = 0
 BLOWUP = 1
@@ -65,22 +69,8 @@ def _drift(xf, vf, hd):
         xf[e] = xf[e] + hd * vf[e]
 
 
-def _kick(xf, vf, ff, f0f, w, h, hd, limit):
-    """Do ``a = w f; f = f0; v += h a; x += hd v`` in one pass; return the count of bad entries."""
-    count = 0
-    for e in range(xf.size):
-        aq = w[e] * ff[e]
-        ff[e] = f0f[e]
-        vq = vf[e] + h * aq
-        vf[e] = vq
-        xq = xf[e] + hd * vq
-        xf[e] = xq
-        count += 0 if (abs(xq) < limit and vq - vq == 0.0) else 1
-    return count
-
-
 def _kick_keep(xf, vf, ff, f0f, w, h, hd, mem_a, limit):
-    """:func:`_kick` that also keeps ``a`` in ``mem_a`` (first same as last)."""
+    """:func:`mslab.kicks.kick` that also keeps ``a`` in ``mem_a`` (first same as last)."""
     count = 0
     for e in range(xf.size):
         aq = w[e] * ff[e]
@@ -109,7 +99,7 @@ def _kick_with(xf, vf, af, h, hd, limit):
 def _particle_pass(code, xf, vf, ff, f0f, w, maf, h, hd, limit, cuts):
     """Do one pass over the particles, in parts on all threads; return the count of bad entries.
 
-    ``code`` picks :func:`_kick`, :func:`_kick_keep`, :func:`_kick_with` or :func:`_drift`.
+    ``code`` picks :func:`mslab.kicks.kick`, :func:`_kick_keep`, :func:`_kick_with` or :func:`_drift`.
     A drift counts none. With more than one part in ``cuts`` (entries ``cuts[p]:cuts[p+1]``)
     the parts run on all threads (numba's ``prange``); a pass is elementwise, so each entry
     gets the same operations on any number of threads.
@@ -251,7 +241,7 @@ def _kick_rk(x, xf, vf, vi, f, f0f, w, acc, pws, kA, kb, h, hd, limit, params):
 
 
 def run_splitting(x, v, dissipated, drift, kick, reuse, kA, kb, mem_a, mem_p,
-                  dt, step, n_steps, saved, k, xs, vs, ds, limit, cuts, w, f0, params):
+                  dt, step, n_steps, saved, k, xs, vs, ds, limit, cuts, w, f0, params, threads):
     """Take steps of a drift/kick splitting (``mslab/integrators/families/splitting.py``).
 
     ``x += a_0 h v; v += b_0 h a; x += a_1 h v; ...; x += a_k h v`` with ``a = drift``,
@@ -261,7 +251,8 @@ def run_splitting(x, v, dissipated, drift, kick, reuse, kA, kb, mem_a, mem_p,
     fixed: with one stage (forces independent of v, or order 1) the plain kick ``v += b h a``.
     A kick, the drift after it and the blow-up test are one pass (the test counts at the
     last kick only). The passes without stages run on all threads over the parts ``cuts``
-    (:func:`_particle_pass`).
+    (:func:`_particle_pass`); ``threads``, the threads of the parallel loops now: on more
+    than one, the last kernel's kick twin may do the explicit kick's pass (``scene_forces_kick``).
     """
     dim, n = x.shape
     size = n * dim
@@ -301,9 +292,9 @@ def run_splitting(x, v, dissipated, drift, kick, reuse, kA, kb, mem_a, mem_p,
                 n_force += 1
                 bad = _particle_pass(KICK_KEEP, xf, vf, ff, f0f, w, maf, hs, hd, limit, cuts)
             else:  # the explicit kick: forces, then kick + drift + test in one pass
-                pw = scene_forces(x, v, f, params)
+                pw, bad = scene_forces_kick(x, v, f, params, xf, vf, ff, f0f, w, maf, hs, hd, limit, cuts,
+                                            threads)
                 n_force += 1
-                bad = _particle_pass(KICK, xf, vf, ff, f0f, w, maf, hs, hd, limit, cuts)
             work += h * pw
             p_last = pw
         dissipated = dissipated + work
@@ -391,7 +382,13 @@ def run_two_step(method, x, v, dissipated, mem_x, mem_a, mem_p, dt, step, n_step
 
 
 # -- scene forces (generated) --
-# mslab.fast.compose cuts the template here and appends the scene's ``scene_forces``.
+# mslab.fast.compose cuts the template here and appends the scene's ``scene_forces`` and
+# ``scene_forces_kick`` (the forces, then the pass KICK; returns the power and the bad count).
 def scene_forces(x, v, f, params):
     """Stand in for the scene's forces in the template (never compiled)."""
+    raise NotImplementedError("mslab.fast.loops is a template; use mslab.fast.compose")
+
+
+def scene_forces_kick(x, v, f, params, xf, vf, ff, f0f, w, maf, h, hd, limit, cuts, threads):
+    """Stand in for the scene's forces and kick pass in the template (never compiled)."""
     raise NotImplementedError("mslab.fast.loops is a template; use mslab.fast.compose")

@@ -137,7 +137,8 @@ class ForceModel:
         self.inv_mass = np.ascontiguousarray(system.inv_mass, dtype=self.dtype)
         self.w = np.tile(self.inv_mass, system.dim)
         self.cuts = particle_cuts(self.w.size)
-        self.module = compose.module_for(self.kernels, parallel=self.cuts.size > 2)
+        kick = type(varying[-1]).kick_kernel if varying else None  # the last kernel's kick twin
+        self.module = compose.module_for(self.kernels, parallel=self.cuts.size > 2, kick=kick)
 
     def rhs(self, x: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, float]:
         """Return acceleration (n_particles, dim) and dissipated power: ``System.rhs`` compiled, uncounted."""

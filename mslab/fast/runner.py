@@ -6,6 +6,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from mslab import jit
 from mslab.fast.model import ForceModel
 from mslab.fast.newton import CompiledSystem
 from mslab.state import State
@@ -132,8 +133,9 @@ class Stepper:
                 kick_method = ig.kick_method if system.velocity_dependent else None
                 kA, kb = (kick_method.A, kick_method.b) if kick_method is not None else _EULER
                 self._kick = (np.ascontiguousarray(kA), np.ascontiguousarray(kb))
+            threads = jit.numba().get_num_threads()  # (the session's, set around the call)
             return mod.run_splitting(x, v, dissipated, drift, kick, reuse, *self._kick, mem_a, mem_p,
-                                     *common, *model)
+                                     *common, *model, threads)
         mem_x, mem_a, mem_p = mem
         code = mod.VERLET if self.loop == "verlet" else mod.LEAPFROG
         return mod.run_two_step(code, x, v, dissipated, mem_x, mem_a, mem_p, *common,
