@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 import mslab
-from mslab.effects import Springs
+from mslab.effects import Springs, spring_batches
 from mslab.errors import InstabilityError
 from mslab.fast import compose
-from mslab.scenes import generators
+from mslab.scenes import SceneBuilder, generators
 
 pytest.importorskip("numba")
 
@@ -39,15 +39,23 @@ def session(scene, method: str, dt: float, fused: bool, threads: int, dtype: str
         compose.FUSED_KICK = old
 
 
-@pytest.mark.parametrize("damped, method, dtype", [
-    (True, "symplectic_euler", "float64"), (True, "symplectic_euler", "float32"),
-    (True, "symplectic_euler_x", "float64"), (False, "forest_ruth", "float64"),
-    (False, "velocity_verlet", "float64")])
-def test_the_kick_twin_gives_the_bits_of_the_pass_apart(damped, method, dtype):
+@pytest.mark.parametrize("damped, method, dtype, blocks", [
+    (True, "symplectic_euler", "float64", None), (True, "symplectic_euler", "float32", None),
+    (True, "symplectic_euler_x", "float64", None), (False, "forest_ruth", "float64", None),
+    (False, "yoshida6", "float64", 5), (True, "symplectic_euler", "float64", 4),
+    (True, "symplectic_euler", "float64", 7)])
+def test_the_kick_twin_gives_the_bits_of_the_pass_apart(damped, method, dtype, blocks, monkeypatch):
+    """Every method whose kicks are plain (velocity Verlet reuses its last kick's acceleration
+    and takes no plain kick; damped Forest-Ruth's kicks have stages), 32 blocks and odd or
+    small counts (4, 5, 7: the last odd batch kicks one block or two). On one thread the
+    twin is not used: that run checks the loop's choice."""
+    if blocks is not None:
+        monkeypatch.setattr(spring_batches, "MAX_BLOCKS", blocks)
     scene = cloth(damped)
     springs = next(e for e in scene.system.effects if isinstance(e, Springs))
     phases = springs.kernel_params()[9]
     assert phases.size == 4 and phases[1] - phases[0] > 1  # two parallel phases: the twin kicks
+    assert phases[2] == (blocks or spring_batches.MAX_BLOCKS)
     apart = session(scene, method, 1 / 960, fused=False, threads=1, dtype=dtype)
     apart.advance(24)
     for threads in (1, 2):
@@ -63,10 +71,32 @@ def test_the_kick_twin_gives_the_bits_of_the_pass_apart(damped, method, dtype):
 def test_a_blow_up_stops_at_the_same_step_with_the_twin():
     """The blow-up test counts bad entries in the twin's blocks as in the pass apart."""
     scene = cloth(True)
-    steps = []
+    stops = []
     for fused in (False, True):
         sim = session(scene, "symplectic_euler", 1 / 20, fused=fused, threads=2)
         with pytest.raises(InstabilityError) as err:
             sim.advance(400)
-        steps.append(err.value.step)
-    assert steps[0] == steps[1] < 400
+        stops.append((err.value.step, str(err.value), sim.state.x.tobytes(), sim.state.v.tobytes()))
+    assert stops[0] == stops[1] and stops[0][0] < 400
+
+
+def test_springs_with_a_far_batch_keep_the_pass_apart():
+    """Springs joining far-apart particle numbers (a far batch, summed after the second phase)
+    change forces after it: the twin declines and the loop runs the pass, the same bits."""
+    springs = next(e for e in cloth(True).system.effects if isinstance(e, Springs))
+    b = SceneBuilder(3)
+    b.add_particles(cloth(True).state0.x, mass=0.25)
+    b.pin(0)
+    b.add_springs(np.stack([springs.i, springs.j], 1), stiffness=1000.0, damping=10.0)
+    b.add_springs([[0, N * N - 1], [5, N * N // 2]], stiffness=10.0)  # far apart in number
+    b.add_gravity([0.0, 0.0, -9.81])
+    scene = b.build()
+    springs = next(e for e in scene.system.effects if isinstance(e, Springs))
+    i, *_, batches, phases, _ = springs.kernel_params()
+    assert batches[phases[2] + 1] > batches[phases[2]]  # a far batch
+    apart = session(scene, "symplectic_euler", 1 / 960, fused=False, threads=2)
+    fused = session(scene, "symplectic_euler", 1 / 960, fused=True, threads=2)
+    apart.advance(16)
+    fused.advance(16)
+    np.testing.assert_array_equal(fused.state.x, apart.state.x)
+    np.testing.assert_array_equal(fused.state.v, apart.state.v)

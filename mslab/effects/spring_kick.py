@@ -10,7 +10,9 @@ blocks' forces are complete (their even batches ran in the first phase, no far b
 left), and no other batch of the phase reads them, so the same thread kicks them at once.
 Each entry gets the same operations in the same order as in the separate pass, and each
 spring's force the same sums: the results are bitwise those of the kernel and the pass,
-on any number of threads (``tests/test_fused_kick.py``).
+on any number of threads (``tests/test_fused_kick.py``). (A run's vector loop may read up to
+7 particles past its run, whose pair forces it computes and drops: where those lie in a block
+another thread is kicking, what it reads is discarded either way.)
 """
 
 from __future__ import annotations
