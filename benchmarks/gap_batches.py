@@ -22,12 +22,7 @@ is a test.
 
 from __future__ import annotations
 
-import argparse
-import json
-import os
-import statistics
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -35,9 +30,8 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 
-from benchmarks.float32 import _ratio  # noqa: E402
-from benchmarks.frame_loop import DT, SUBSTEPS, frame_cloth  # noqa: E402
-from benchmarks.suite import machine  # noqa: E402
+from benchmarks.frame_loop import DT, frame_cloth  # noqa: E402
+from benchmarks.session_ab import compare_ways, main  # noqa: E402
 
 
 def without_parallel_gaps(gap_springs):
@@ -63,65 +57,22 @@ def compare(n: int, dtype: str, threads: int, repeats: int, sessions: int) -> di
     from mslab.effects import Springs
 
     new_rule = springs_module.gap_springs
-    sims: dict[str, list] = {"old": [], "new": []}
     runs = {}
-    for _ in range(sessions):
-        for rule in sims:
-            scene = frame_cloth(n)
-            springs_module.gap_springs = without_parallel_gaps(new_rule) if rule == "old" else new_rule
-            try:
-                sim = mslab.Simulation(scene, "symplectic_euler", dt=DT, backend="numba", threads=threads,
-                                       dtype=dtype, check_stability=False)
-                sim.advance(SUBSTEPS)
-            finally:
-                springs_module.gap_springs = new_rule
-            springs = next(e for e in sim.system.effects if isinstance(e, Springs))
-            runs[rule] = int(np.count_nonzero(springs.kernel_params()[7]))
-            sims[rule].append(sim)
+
+    def make(rule: str):
+        springs_module.gap_springs = without_parallel_gaps(new_rule) if rule == "old" else new_rule
+        try:
+            sim = mslab.Simulation(frame_cloth(n), "symplectic_euler", dt=DT, backend="numba",
+                                   threads=threads, dtype=dtype, check_stability=False)
+        finally:
+            springs_module.gap_springs = new_rule
+        springs = next(e for e in sim.system.effects if isinstance(e, Springs))
+        runs[rule] = int(np.count_nonzero(springs.kernel_params()[7]))
+        return sim
+
     m = next(e for e in frame_cloth(n).system.effects if isinstance(e, Springs)).i.size
-    old, new = sims["old"][0].state, sims["new"][0].state
-    same = all(np.asarray(getattr(old, k)).tobytes() == np.asarray(getattr(new, k)).tobytes()
-               for k in ("x", "v"))
-    number = max(1, int(0.02 * 3e8 / (m * SUBSTEPS)))
-    per = {(rule, q): [] for rule in sims for q in range(sessions)}
-    load_before = os.getloadavg()
-    for _ in range(repeats):
-        for (rule, q), times in per.items():
-            sim = sims[rule][q]
-            t = time.perf_counter()
-            for _ in range(number):
-                sim.advance(SUBSTEPS)
-            times.append((time.perf_counter() - t) / number / SUBSTEPS / m * 1e9)
-    times = {rule: [statistics.median(per[rule, q][t] for q in range(sessions)) for t in range(repeats)]
-             for rule in sims}
-    return {"n": n, "dtype": dtype, "threads": threads, "springs": m, "runs": runs, "bitwise_same": same,
-            "sessions": sessions, "repeats": repeats,
-            "ns_per_spring_step": {rule: statistics.median(t) for rule, t in times.items()},
-            "new_over_old": _ratio(times["new"], times["old"]),
-            "load_average_before": load_before, "load_average_after": os.getloadavg()}
-
-
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repeats", type=int, default=11)
-    parser.add_argument("--sessions", type=int, default=4)
-    parser.add_argument("--sizes", type=int, nargs="+", default=[300])
-    args = parser.parse_args()
-    rows = []
-    for n in args.sizes:
-        for threads in (1, 2):
-            for dtype in ("float32", "float64"):
-                row = compare(n, dtype, threads, args.repeats, args.sessions)
-                rows.append(row)
-                ns, r = row["ns_per_spring_step"], row["new_over_old"]
-                load = row["load_average_before"][0], row["load_average_after"][0]
-                print(f"{n}² {dtype} {threads} thread(s): runs {row['runs']['old']} -> {row['runs']['new']}, "
-                      f"bitwise same {row['bitwise_same']}; ns/spring-step old {ns['old']:.3f} "
-                      f"new {ns['new']:.3f}; new/old {r['median']:.3f} ({r['min']:.3f}-{r['max']:.3f}); "
-                      f"load {load[0]:.2f}-{load[1]:.2f}", flush=True)
-    doc = {"machine": machine(), "rows": rows}
-    (HERE / "gap_batches.json").write_text(json.dumps(doc, indent=1) + "\n")
+    return {**compare_ways(make, ("old", "new"), m, repeats, sessions), "runs": runs}
 
 
 if __name__ == "__main__":
-    main()
+    main(__doc__.splitlines()[0], compare, ("old", "new"), HERE / "gap_batches.json")
